@@ -1,0 +1,1 @@
+"""Mapping: occupancy grid, scan matching, frontiers and goal strategies, landmark SLAM, map I/O."""

@@ -1,0 +1,1 @@
+"""Navigation: costmaps, global planners, local controllers and recoveries, chosen by name."""

@@ -1,0 +1,1 @@
+"""Perception: AprilTag detection and pose, camera model, scan preprocessing, dock IR decoding."""

@@ -1,0 +1,61 @@
+"""The package installs as `homing.<part>` and the CLI treats mistakes as one-line errors."""
+
+from __future__ import annotations
+
+import importlib
+import subprocess
+import sys
+
+import pytest
+import tomllib
+
+from tests.conftest import REPO
+
+PARTS = ["robot", "sim", "perception", "mapping", "navigation", "behaviours", "missions", "benchmarks"]
+
+
+def test_every_folder_with_init_is_a_listed_package() -> None:
+    config = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+    listed = set(config["packages"])
+    dirs = config["package-dir"]
+    found = set()
+    for pkg, folder in dirs.items():
+        root = REPO / folder
+        for init in root.rglob("__init__.py"):
+            rel = init.parent.relative_to(root)
+            found.add(".".join([pkg, *rel.parts]) if rel.parts else pkg)
+    assert found <= listed, f"packages not listed in pyproject.toml: {sorted(found - listed)}"
+    assert listed <= found, f"listed packages without a folder: {sorted(listed - found)}"
+
+
+@pytest.mark.parametrize("part", PARTS)
+def test_parts_import_as_homing_subpackages(part: str) -> None:
+    module = importlib.import_module(f"homing.{part}")
+    assert module.__file__ is not None
+    assert module.__name__ == f"homing.{part}"
+
+
+def _homing(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "homing.missions.cli", *args], capture_output=True, text=True, timeout=120
+    )
+
+
+def test_help_lists_subcommands() -> None:
+    out = _homing("--help")
+    assert out.returncode == 0
+    assert "bench" in out.stdout
+
+
+def test_bad_argument_is_one_line_exit_2() -> None:
+    out = _homing("no-such-command")
+    assert out.returncode == 2
+    assert out.stderr.count("\n") == 1, out.stderr
+    assert "Traceback" not in out.stderr
+
+
+def test_ci_runs_the_readme_test_command() -> None:
+    readme = (REPO / "README.md").read_text()
+    ci = (REPO / ".ci" / "run").read_text()
+    command = next(line for line in ci.splitlines() if line.startswith("python3 -m venv"))
+    assert command in readme
