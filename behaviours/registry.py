@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol, TypeVar
 
 import py_trees
-
 from homing.robot import Observation, RobotAdapter
 
 
@@ -60,6 +59,13 @@ class NodeSpec:
     ``kind`` is ``"action"``, ``"condition"``, ``"decorator"`` or
     ``"composite"``. ``factory(name=..., **params)`` builds the py_trees
     behaviour (decorators and composites also get ``child``/``children``).
+
+    ``slots`` names the children a control node takes, each passed to the
+    factory as a keyword: ``("child",)`` for a decorator (the default when
+    empty), ``("children",)`` for a composite's list, or named branches such
+    as ``("child", "recovery")``. A key in ``reads``/``writes`` that starts
+    with ``$`` names a parameter whose value is the key (e.g. ``"$key"`` for
+    a blackboard leaf whose ``key`` parameter says which entry it sets).
     """
 
     name: str
@@ -70,9 +76,33 @@ class NodeSpec:
     writes: tuple[str, ...] = ()
     doc: str = ""
     source: str = "homing"
+    slots: tuple[str, ...] = ()
 
     def param(self, name: str) -> Param | None:
         return next((p for p in self.params if p.name == name), None)
+
+    @property
+    def child_slots(self) -> tuple[str, ...]:
+        """The keyword(s) the factory takes children by (empty for a leaf)."""
+        if self.slots:
+            return self.slots
+        return {"decorator": ("child",), "composite": ("children",)}.get(self.kind, ())
+
+    def keys(self, params: dict[str, Any]) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """(reads, writes) with ``$param`` entries replaced by the parameter's value."""
+
+        def resolve(keys: tuple[str, ...]) -> tuple[str, ...]:
+            out = []
+            for key in keys:
+                if key.startswith("$"):
+                    value = params.get(key[1:])
+                    if isinstance(value, str) and value:
+                        out.append(value)
+                else:
+                    out.append(key)
+            return tuple(out)
+
+        return resolve(self.reads), resolve(self.writes)
 
 
 NODES: dict[str, NodeSpec] = {}
@@ -87,11 +117,13 @@ def register(
     params: tuple[Param, ...] | None = None,
     reads: tuple[str, ...] | None = None,
     writes: tuple[str, ...] | None = None,
+    slots: tuple[str, ...] = (),
 ) -> Callable[[B], B]:
     """Class decorator: register a behaviour class as a mission node.
 
     Declarations default to the class attributes ``PARAMS``, ``READS`` and
-    ``WRITES``; the doc is the class docstring's first paragraph.
+    ``WRITES``; the doc is the class docstring's first paragraph. ``slots``:
+    see :class:`NodeSpec` (only control nodes need it).
     """
 
     def wrap(cls: B) -> B:
@@ -106,6 +138,7 @@ def register(
             writes=tuple(writes if writes is not None else getattr(cls, "WRITES", ())),
             doc=doc,
             source=cls.__module__,
+            slots=tuple(slots),
         )
         if node in NODES and NODES[node].factory is not cls:
             raise ValueError(f"node '{node}' registered twice ({NODES[node].source} and {spec.source})")

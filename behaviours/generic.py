@@ -1,0 +1,238 @@
+"""General leaves every mission needs: waiting, stopping, fixed outcomes, blackboard and battery checks.
+
+They hold no algorithm (DESIGN.md): each reads the blackboard or the
+adapter's clock, maybe writes the blackboard, and returns a status in one
+tick. Conditions (``kind="condition"``) answer SUCCESS or FAILURE at once
+and never RUNNING, so they can sit under a ``guard`` or at the head of a
+``reactive_sequence``.
+"""
+
+from __future__ import annotations
+
+import operator
+from typing import Any
+
+from homing.behaviours.base import (
+    CMD_VEL_KEY,
+    OBSERVATION_KEY,
+    STATE_KEY,
+    HomingBehaviour,
+    LongAction,
+)
+from homing.behaviours.registry import REQUIRED, Param, register
+from py_trees.common import Status
+
+VALUE_TYPES = (str, int, float, bool, list)
+
+
+@register("Wait")
+class Wait(LongAction):
+    """RUNNING until ``seconds`` of adapter time have passed since it started, then SUCCESS.
+
+    Adapter clock (a simulated minute passes in a fraction of a real one);
+    BT.CPP's ``Sleep`` counts milliseconds, homing seconds. Sends no command,
+    so the robot stands still while it waits.
+    """
+
+    PARAMS = (Param("seconds", float, REQUIRED, "s", "how long to wait"),)
+
+    def __init__(self, name: str, seconds: float):
+        if seconds < 0:
+            raise ValueError(f"seconds must be ≥ 0, not {seconds}")
+        super().__init__(name)
+        self.seconds = float(seconds)  # [s]
+
+    def on_running(self) -> Status:
+        left = self.seconds - self.elapsed()
+        self.feedback_message = f"{max(left, 0.0):.1f} s left"
+        return Status.SUCCESS if left <= 0 else Status.RUNNING
+
+
+@register("Drive")
+class Drive(LongAction):
+    """Drive open-loop at (v, omega) for ``seconds`` of adapter time, then SUCCESS.
+
+    For scripted moves (back out of the dock, turn a circle to seed the map).
+    Not for going somewhere: it knows nothing of obstacles; use navigation.
+    """
+
+    PARAMS = (
+        Param("v", float, 0.0, "m/s", "forward speed in base_link"),
+        Param("omega", float, 0.0, "rad/s", "yaw rate, counter-clockwise positive"),
+        Param("seconds", float, REQUIRED, "s", "how long to drive"),
+    )
+    WRITES = (CMD_VEL_KEY,)
+
+    def __init__(self, name: str, seconds: float, v: float = 0.0, omega: float = 0.0):
+        if seconds < 0:
+            raise ValueError(f"seconds must be ≥ 0, not {seconds}")
+        super().__init__(name)
+        self.v, self.omega, self.seconds = float(v), float(omega), float(seconds)
+
+    def on_running(self) -> Status:
+        if self.elapsed() >= self.seconds:
+            return Status.SUCCESS
+        self.drive(self.v, self.omega)
+        self.feedback_message = f"v={self.v:.2f} m/s ω={self.omega:.2f} rad/s, {self.seconds - self.elapsed():.1f} s left"
+        return Status.RUNNING
+
+
+@register("Stop")
+class Stop(HomingBehaviour):
+    """Command zero velocity this tick and SUCCEED (the runner already sends zero when nobody drives)."""
+
+    WRITES = (CMD_VEL_KEY,)
+
+    def update(self) -> Status:
+        self.drive(0.0, 0.0)
+        return Status.SUCCESS
+
+
+@register("Succeed")
+class Succeed(HomingBehaviour):
+    """Always SUCCESS (BT.CPP ``AlwaysSuccess``, py_trees ``Success``)."""
+
+    def update(self) -> Status:
+        return Status.SUCCESS
+
+
+@register("Fail")
+class Fail(HomingBehaviour):
+    """Always FAILURE (BT.CPP ``AlwaysFailure``, py_trees ``Failure``)."""
+
+    def update(self) -> Status:
+        return Status.FAILURE
+
+
+@register("Running")
+class Running(HomingBehaviour):
+    """Always RUNNING: a placeholder that never ends (py_trees ``Running``)."""
+
+    def update(self) -> Status:
+        return Status.RUNNING
+
+
+@register("SetBlackboard")
+class SetBlackboard(HomingBehaviour):
+    """Write ``value`` to the blackboard ``key`` and SUCCEED (BT.CPP ``SetBlackboard``)."""
+
+    PARAMS = (
+        Param("key", str, REQUIRED, doc="absolute blackboard key, e.g. /mission/goal_count"),
+        Param("value", VALUE_TYPES, REQUIRED, doc="the value to write"),
+    )
+    WRITES = ("$key",)
+
+    def __init__(self, name: str, key: str, value: Any):
+        self.key = key
+        super().__init__(name)
+        self.value = value
+
+    def update(self) -> Status:
+        self.write(self.key, self.value)
+        return Status.SUCCESS
+
+
+_OPS = {
+    "==": operator.eq,
+    "!=": operator.ne,
+    "<": operator.lt,
+    "<=": operator.le,
+    ">": operator.gt,
+    ">=": operator.ge,
+}
+
+
+@register("CheckBlackboard", kind="condition")
+class CheckBlackboard(HomingBehaviour):
+    """SUCCESS if blackboard ``key`` compares true against ``value`` with ``op``; FAILURE otherwise or if unset.
+
+    ``op: exists`` ignores ``value`` and only asks whether the key is set
+    (py_trees ``CheckBlackboardVariableExists``).
+    """
+
+    PARAMS = (
+        Param("key", str, REQUIRED, doc="absolute blackboard key"),
+        Param("op", str, "==", doc="comparison", choices=(*_OPS, "exists")),
+        Param("value", VALUE_TYPES, None, doc="right-hand side of the comparison"),
+    )
+    READS = ("$key",)
+
+    def __init__(self, name: str, key: str, op: str = "==", value: Any = None):
+        if op not in _OPS and op != "exists":
+            raise ValueError(f"op must be one of {', '.join([*_OPS, 'exists'])}, not {op!r}")
+        self.key = key
+        super().__init__(name)
+        self.op, self.value = op, value
+
+    def update(self) -> Status:
+        missing = object()
+        current = self.read(self.key, missing)
+        if current is missing:
+            self.feedback_message = f"{self.key} is not set"
+            return Status.FAILURE
+        if self.op == "exists":
+            return Status.SUCCESS
+        try:
+            ok = bool(_OPS[self.op](current, self.value))
+        except TypeError:
+            ok = False
+        self.feedback_message = f"{self.key}={current!r} {self.op} {self.value!r}: {ok}"
+        return Status.SUCCESS if ok else Status.FAILURE
+
+
+class _BatteryCondition(HomingBehaviour):
+    PARAMS = (
+        Param("percent", float, REQUIRED, "%", "threshold, 0..100"),
+        Param("battery", str, "base", doc="which battery: the Kobuki base or the on-board computer", choices=("base", "computer")),
+    )
+    READS = (OBSERVATION_KEY,)
+    ABOVE = True
+
+    def __init__(self, name: str, percent: float, battery: str = "base"):
+        if not 0.0 <= percent <= 100.0:
+            raise ValueError(f"percent must be within 0..100, not {percent}")
+        if battery not in ("base", "computer"):
+            raise ValueError(f"battery must be 'base' or 'computer', not {battery!r}")
+        super().__init__(name)
+        self.percent, self.battery = float(percent), battery
+
+    def update(self) -> Status:
+        obs = self.observation()
+        state = None if obs is None else (obs.battery if self.battery == "base" else obs.computer_battery)
+        if state is None:
+            self.feedback_message = f"no {self.battery} battery reading"
+            return Status.FAILURE
+        ok = state.percent > self.percent if self.ABOVE else state.percent < self.percent
+        self.feedback_message = f"{self.battery} battery {state.percent:.0f} % {'>' if self.ABOVE else '<'} {self.percent:g} %: {ok}"
+        return Status.SUCCESS if ok else Status.FAILURE
+
+
+@register("BatteryAbove", kind="condition")
+class BatteryAbove(_BatteryCondition):
+    """SUCCESS while the battery's percentage is strictly above ``percent`` (reads /robot/observation)."""
+
+    ABOVE = True
+
+
+@register("BatteryBelow", kind="condition")
+class BatteryBelow(_BatteryCondition):
+    """SUCCESS while the battery's percentage is strictly below ``percent`` (Nav2 ``IsBatteryLow``)."""
+
+    ABOVE = False
+
+
+@register("MissionState")
+class MissionState(HomingBehaviour):
+    """Write the lifecycle state shown in the view (``/mission/state``) and SUCCEED."""
+
+    PARAMS = (Param("state", str, REQUIRED, doc="e.g. Docked, Undocking, Exploring, MapHome, AutoDocking, Error"),)
+    WRITES = (STATE_KEY,)
+
+    def __init__(self, name: str, state: str):
+        super().__init__(name)
+        self.state = state
+
+    def update(self) -> Status:
+        self.write(STATE_KEY, self.state)
+        self.feedback_message = self.state
+        return Status.SUCCESS

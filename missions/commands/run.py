@@ -1,0 +1,113 @@
+"""``homing run MISSION.yaml --world WORLD --seed N``: tick a mission against the simulator (or any adapter)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from typing import Any
+
+DEFAULT_VIEW_SPEED = 10.0  # [× real time] pace with the live view, so that it can be watched
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from homing.missions.commands.check import add_set_argument
+
+    parser = sub.add_parser(
+        "run",
+        help="run a mission in the simulator (live view in a terminal; --no-view for a status log)",
+        description="Check the mission, then tick it on the adapter's clock until the root finishes, "
+        "the time limit passes or Ctrl-C; the robot is stopped and the tree halted in every case.",
+    )
+    parser.add_argument("mission", metavar="MISSION.yaml")
+    robot = parser.add_mutually_exclusive_group(required=True)
+    robot.add_argument("--world", help="a bundled world's name, a world YAML or a map_server YAML")
+    robot.add_argument(
+        "--adapter", metavar="MODULE:CALLABLE",
+        help="build the robot with CALLABLE(seed=N) from MODULE instead (any RobotAdapter)",
+    )  # fmt: skip
+    parser.add_argument("--seed", type=int, default=0, help="the run's seed (same seed, same run)")
+    parser.add_argument(
+        "--speed", type=float, metavar="X",
+        help=f"pace at X× real time (default: as fast as possible, or {DEFAULT_VIEW_SPEED:g}× with the view)",
+    )  # fmt: skip
+    parser.add_argument("--until", metavar="DURATION", help="stop after this much adapter time, e.g. 90s, 30min, 2h")
+    parser.add_argument("--rate", type=float, metavar="HZ", help="tick rate (default: the mission's rate)")
+    parser.add_argument("--no-view", action="store_true", help="print timestamped status changes, no live view")
+    parser.add_argument("--log", metavar="PATH", help="also write every status change to PATH")
+    add_set_argument(parser)
+    parser.set_defaults(func=run)
+
+
+def _adapter(args: argparse.Namespace) -> Any:
+    import importlib
+
+    from homing.errors import UserError
+
+    if args.adapter:
+        module_name, _, attr = args.adapter.partition(":")
+        if "" not in sys.path and os.getcwd() not in sys.path:
+            sys.path.insert(0, os.getcwd())  # as `python -m` does: modules beside the user
+        try:
+            factory = getattr(importlib.import_module(module_name), attr or "make_robot")
+        except (ImportError, AttributeError) as err:
+            raise UserError(f"--adapter {args.adapter}: {err}") from None
+        return factory(seed=args.seed)
+    try:
+        from homing.sim import SimRobot, load_world
+    except ImportError as err:
+        raise UserError(f"--world needs the simulator (homing.sim), which cannot be loaded: {err}") from None
+    return SimRobot(load_world(args.world), seed=args.seed)
+
+
+def run(args: argparse.Namespace) -> int:
+    from homing.missions.commands.check import overrides
+    from homing.missions.compiler import compile_mission
+    from homing.missions.runner import Runner, StatusChange, parse_duration
+    from homing.missions.view import LiveView, PlainLog
+
+    from homing.atomic import atomic_write
+    from homing.errors import UserError
+
+    if args.rate is not None and not args.rate > 0:
+        raise UserError(f"--rate must be positive, not {args.rate:g}")
+    if args.speed is not None and not args.speed > 0:
+        raise UserError(f"--speed must be positive, not {args.speed:g}")
+    try:
+        until = parse_duration(args.until) if args.until else None
+    except ValueError as err:
+        raise UserError(f"--until: {err}") from None
+    mission = compile_mission(args.mission, overrides(args))
+    for warning in mission.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    live = not args.no_view and sys.stdout.isatty()
+    speed = args.speed if args.speed is not None else (DEFAULT_VIEW_SPEED if live else None)
+    changes: list[StatusChange] = []
+    plain = PlainLog(sys.stdout)
+
+    def on_change(change: StatusChange) -> None:
+        changes.append(change) if args.log else None
+        if not live:
+            plain(change)
+
+    robot = _adapter(args)
+    try:
+        runner = Runner(mission, robot, seed=args.seed, rate=args.rate, until=until, speed=speed, on_change=on_change)
+        if live:
+            with LiveView(mission) as view:
+                runner.on_tick = view.update
+                result = runner.run()
+                view.update(runner, force=True)
+        else:
+            result = runner.run()
+    finally:
+        robot.close()
+    if args.log:
+        atomic_write(args.log, "".join(c.line() + "\n" for c in changes))
+    cmd = result.final_command
+    print(
+        f"stopped: {result.reason} at t={result.time:.2f} s after {result.ticks} ticks "
+        f"({result.rtf:.1f}× real time); root {result.root_status.value}"
+    )
+    print(f"final command v={cmd.v:.3f} m/s ω={cmd.omega:.3f} rad/s (robot stopped)")
+    return {"success": 0, "time_limit": 0, "failure": 1, "interrupted": 130}[result.reason]

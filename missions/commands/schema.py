@@ -1,0 +1,35 @@
+"""``homing schema [-o PATH]``: the JSON Schema of mission files, for an editor's YAML language server."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "schema",
+        help="write the JSON Schema of the mission language (for editor completion and checking)",
+        description="Print (or write with -o) a JSON Schema of mission files covering every registered "
+        "node and its parameters. With the YAML language server, add to a mission's first line: "
+        "# yaml-language-server: $schema=PATH",
+    )
+    parser.add_argument("-o", "--output", metavar="PATH", help="write the schema here instead of stdout")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from homing.behaviours import load_nodes
+    from homing.missions.schema import json_schema
+
+    from homing.atomic import atomic_write
+
+    load_nodes()
+    text = json.dumps(json_schema(), indent=2, sort_keys=False) + "\n"
+    if args.output:
+        atomic_write(args.output, text)
+        print(f"wrote {args.output}")
+    else:
+        print(text, end="")
+    return 0

@@ -1,0 +1,231 @@
+"""Tick a compiled mission against a robot adapter, on the adapter's clock (ARCHITECTURE.md, one tick).
+
+Each tick: observe and publish ``/robot/observation`` and ``/robot/time``;
+update the services in order; clear ``/cmd_vel`` and tick the tree once;
+send ``/cmd_vel`` (zero if no leaf wrote it); step the adapter by ``1/rate``
+seconds. The run ends when the root finishes, when ``until`` seconds of
+adapter time have passed, or on Ctrl-C; in every case the robot is sent a
+zero command and the tree is halted (running leaves get ``terminate(INVALID)``
+and cancel their work) before the services shut down.
+
+Every status change of every node is reported with the adapter time to
+``on_change``: changes the tick walks through (a recovery node's child
+failing and starting again inside one tick) and halts it does not (a
+branch preempted by a higher priority).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import py_trees
+from homing.behaviours.registry import Service
+from homing.missions.compiler import CompiledMission
+from homing.robot import Observation, RobotAdapter, Twist2
+from py_trees.common import Access, Status
+
+UNTIL_SLACK = 1e-6  # [s] float steps of 1/rate must not cost an extra tick at the limit
+STOP_REASONS = ("success", "failure", "time_limit", "interrupted")
+
+
+@dataclass(frozen=True)
+class StatusChange:
+    """Node ``node`` went from ``old`` to ``new`` at adapter time ``time`` [s]."""
+
+    time: float
+    node: str
+    old: Status
+    new: Status
+
+    def line(self) -> str:
+        return f"[{self.time:10.2f} s] {self.node}: {self.old.value} -> {self.new.value}"
+
+
+@dataclass
+class RunResult:
+    """How a run ended: ``reason`` (one of STOP_REASONS), adapter time, ticks and the last command sent."""
+
+    reason: str
+    time: float  # [s] adapter clock at the end
+    ticks: int
+    final_command: Twist2
+    wall: float  # [s] real time taken
+    changes: int = 0
+    root_status: Status = Status.INVALID
+
+    @property
+    def rtf(self) -> float:
+        """Real-time factor: adapter seconds per real second."""
+        return self.time / self.wall if self.wall > 0 else math.inf
+
+
+@dataclass
+class Runner:
+    """Owns the tick loop for one mission on one adapter.
+
+    ``rate`` [Hz] defaults to the mission's; ``until`` [s] of adapter time
+    since the start (None = no limit); ``speed`` paces the loop at that many
+    times real time (None = as fast as possible; only meaningful for a
+    simulator, whose ``step`` returns at once). Callbacks: ``on_change`` per
+    status change, ``on_tick`` after every tick (the live view).
+    """
+
+    mission: CompiledMission
+    robot: RobotAdapter
+    seed: int = 0
+    rate: float | None = None
+    until: float | None = None
+    speed: float | None = None
+    on_change: Callable[[StatusChange], None] | None = None
+    on_tick: Callable[[Runner], None] | None = None
+    ticks: int = 0
+    now: float = 0.0  # [s] adapter time of the last tick
+    start: float = 0.0  # [s] adapter time at the first tick
+    wall_start: float = 0.0  # [s] real
+    last_command: Twist2 = field(default_factory=Twist2)
+    observation: Observation | None = None
+    services: list[Service] = field(default_factory=list)
+    changes: int = 0
+
+    def __post_init__(self) -> None:
+        self.tree = py_trees.trees.BehaviourTree(self.mission.root)
+        self.bb = py_trees.blackboard.Client(name="runner")
+        for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state"):
+            self.bb.register_key(key=key, access=Access.WRITE)
+        for key in self.mission.source.view_keys:
+            if key not in self.bb.remappings:
+                self.bb.register_key(key=key, access=Access.READ)
+        self._status: dict[Any, Status] = {n.id: n.status for n in self.mission.root.iterate()}
+        self._names = {n.id: n.name for n in self.mission.root.iterate()}
+        self.tree.visitors.append(_ChangeVisitor(self))
+        self._setup_done = False
+
+    @property
+    def period(self) -> float:
+        """Seconds of adapter time between ticks."""
+        return 1.0 / (self.rate or self.mission.rate)
+
+    def setup(self) -> None:
+        """Build and set up the services, then the tree (``setup(robot=..., seed=...)``)."""
+        for spec, params in self.mission.services:
+            service = spec.factory(**params)
+            client = py_trees.blackboard.Client(name=f"service:{spec.name}")
+            for key in spec.writes:
+                client.register_key(key=key, access=Access.WRITE)
+            for key in ("/robot/observation", "/robot/time"):
+                client.register_key(key=key, access=Access.READ)
+            service.setup(self.robot, client)
+            self.services.append(service)
+        self.tree.setup(robot=self.robot, seed=self.seed)
+        self.start = self.now = float(self.robot.clock.now())
+        self.wall_start = time.monotonic()
+        self._setup_done = True
+
+    def tick(self) -> Status:
+        """One tick of ARCHITECTURE.md: observe, services, tree, command; the caller steps."""
+        obs = self.robot.observe()
+        self.observation = obs
+        self.now = float(obs.stamp)
+        self.bb.set("/robot/observation", obs, overwrite=True)
+        self.bb.set("/robot/time", self.now, overwrite=True)
+        for service in self.services:
+            service.update(obs)
+        self.bb.set("/cmd_vel", None, overwrite=True)
+        self.tree.tick()
+        self._sweep()
+        cmd = self.bb.get("/cmd_vel")
+        self.last_command = self.robot.command(cmd.v, cmd.omega) if isinstance(cmd, Twist2) else self.robot.command(0.0, 0.0)
+        self.ticks += 1
+        return self.mission.root.status
+
+    def run(self) -> RunResult:
+        """Tick until the root finishes, the time limit or Ctrl-C; always stop and halt cleanly."""
+        if not self._setup_done:
+            self.setup()
+        reason = "interrupted"
+        try:
+            while True:
+                if self.until is not None and self.robot.clock.now() - self.start >= self.until - UNTIL_SLACK:
+                    reason = "time_limit"
+                    break
+                status = self.tick()
+                if self.on_tick is not None:
+                    self.on_tick(self)
+                if status in (Status.SUCCESS, Status.FAILURE):
+                    reason = status.value.lower()
+                    break
+                self.robot.step(self.period)
+                self._pace()
+        except KeyboardInterrupt:
+            reason = "interrupted"
+        finally:
+            root_status = self.mission.root.status
+            self.shutdown()
+        return RunResult(
+            reason, self.robot.clock.now() - self.start, self.ticks, self.last_command,
+            time.monotonic() - self.wall_start, self.changes, root_status,
+        )  # fmt: skip
+
+    def shutdown(self) -> None:
+        """Zero command, halt the tree (running leaves cancel), record the halts, shut services down."""
+        self.last_command = self.robot.command(0.0, 0.0)
+        self.now = float(self.robot.clock.now())
+        if self.mission.root.status == Status.RUNNING:
+            self.mission.root.stop(Status.INVALID)
+        self._sweep()
+        for service in self.services:
+            service.shutdown()
+        self.tree.shutdown()
+        if self.on_tick is not None:
+            self.on_tick(self)
+
+    def _pace(self) -> None:
+        if not self.speed:
+            return
+        ahead = (self.robot.clock.now() - self.start) / self.speed - (time.monotonic() - self.wall_start)
+        if ahead > 0:
+            time.sleep(min(ahead, 1.0))
+
+    def record(self, node: py_trees.behaviour.Behaviour) -> None:
+        old = self._status.get(node.id, Status.INVALID)
+        if node.status != old:
+            self._status[node.id] = node.status
+            self.changes += 1
+            if self.on_change is not None:
+                self.on_change(StatusChange(self.now, node.name, old, node.status))
+
+    def _sweep(self) -> None:
+        for node in self.mission.root.iterate():
+            self.record(node)
+
+    def read(self, key: str) -> Any:
+        """A blackboard entry for the view (None when unset)."""
+        try:
+            return self.bb.get(key)
+        except KeyError:
+            return None
+
+
+class _ChangeVisitor(py_trees.visitors.VisitorBase):
+    """Sees every node a tick yields, so changes inside one tick are logged too."""
+
+    def __init__(self, runner: Runner):
+        super().__init__(full=False)
+        self.runner = runner
+
+    def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
+        self.runner.record(behaviour)
+
+
+def parse_duration(text: str) -> float:
+    """``"2h"``, ``"90 min"``, ``"30"`` (seconds) → seconds; raises ValueError."""
+    from homing.missions.schema import parse_quantity
+
+    value = parse_quantity(text, "s")
+    if not value > 0:
+        raise ValueError(f"a duration must be positive, not '{text}'")
+    return value

@@ -1,0 +1,255 @@
+"""The mission language's vocabulary: top-level keys, parameter types and units, and its JSON Schema.
+
+A parameter value is checked against its :class:`~homing.behaviours.registry.Param`
+declaration here: a number where a number is wanted (an ``int`` is a fine
+``float``, a ``bool`` is neither), one of the declared ``choices`` for a
+string, and for a parameter with a unit either a bare number in that unit or
+a string with a compatible unit (``"500 ms"`` for seconds, ``"90 deg"`` for
+radians). A string with the wrong dimension (``"5 m"`` for seconds) is an
+error, so units cannot be confused the way BT.CPP's milliseconds and
+py_trees' seconds are.
+
+:func:`json_schema` turns the registry into a JSON Schema (draft 2020-12) that
+an editor's YAML language server uses to complete and check missions.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from collections.abc import Iterable
+from typing import Any
+
+from homing.behaviours.registry import NODES, REQUIRED, SERVICES, NodeSpec, Param
+
+# Top-level keys of a mission file and what each holds.
+TOP_KEYS: dict[str, str] = {
+    "mission": "the mission's name (default: the file's stem)",
+    "doc": "free text describing the mission",
+    "rate": "tick rate [Hz] on the adapter's clock (default 10)",
+    "services": "world-model services updated before every tick (default [grid_slam, navigation])",
+    "params": "mission parameters with defaults, used in the tree as $name",
+    "include": "other mission files whose subtrees this one uses (paths relative to this file)",
+    "subtrees": "named trees with parameters, used like nodes",
+    "tree": "the root node",
+    "view": "live-view options: {blackboard: [keys to show]}",
+}
+SUBTREE_KEYS: dict[str, str] = {
+    "doc": "what the subtree does",
+    "params": "its parameters: name: default (null = required)",
+    "tree": "the subtree's root node",
+}
+DEFAULT_RATE = 10.0  # [Hz]
+DEFAULT_SERVICES = ("grid_slam", "navigation")
+
+# Units a parameter may declare, and the spellings accepted for each, as factors to it.
+UNITS: dict[str, dict[str, float]] = {
+    "s": {"ms": 1e-3, "s": 1.0, "sec": 1.0, "min": 60.0, "h": 3600.0},
+    "m": {"mm": 1e-3, "cm": 1e-2, "m": 1.0},
+    "rad": {"rad": 1.0, "deg": math.pi / 180.0},
+    "m/s": {"m/s": 1.0, "cm/s": 1e-2},
+    "rad/s": {"rad/s": 1.0, "deg/s": math.pi / 180.0},
+    "Hz": {"Hz": 1.0, "hz": 1.0, "kHz": 1e3},
+    "%": {"%": 1.0},
+    "V": {"V": 1.0, "mV": 1e-3},
+}
+DIMENSION = {"s": "a time", "m": "a length", "rad": "an angle", "m/s": "a speed", "rad/s": "a turn rate",
+             "Hz": "a rate", "%": "a percentage", "V": "a voltage"}  # fmt: skip
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z%/]+)\s*$")
+_TYPE_NAMES = {float: "a number", int: "an integer", bool: "true or false", str: "a string", list: "a list"}
+
+
+def suggest(word: str, options: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` for the closest option, or an empty string."""
+    close = difflib.get_close_matches(str(word), list(options), n=1, cutoff=0.6)
+    if not close:
+        lowered = {o.lower(): o for o in options}
+        if str(word).lower() in lowered:
+            close = [lowered[str(word).lower()]]
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def parse_quantity(text: str, unit: str) -> float:
+    """``"500 ms"`` → 0.5 for unit ``"s"``; a bare number is taken in ``unit``. Raises ValueError."""
+    text = str(text).strip()
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    m = _QUANTITY.match(text)
+    spellings = UNITS.get(unit, {unit: 1.0} if unit else {})
+    if not m:
+        accepted = ", ".join(spellings) if spellings else "no unit"
+        raise ValueError(f"'{text}' is not a number with a unit (accepted units: {accepted})")
+    number, given = float(m.group(1)), m.group(2)
+    if given in spellings:
+        return number * spellings[given]
+    for dim, table in UNITS.items():
+        if given in table:
+            want = DIMENSION.get(unit, f"'{unit}'") if unit else "a plain number"
+            raise ValueError(
+                f"wrong unit '{given}' ({DIMENSION[dim]}) where {want} is expected"
+                + (f" (use {', '.join(spellings)})" if spellings else "")
+            )
+    raise ValueError(f"unknown unit '{given}'{suggest(given, spellings)} (use {', '.join(spellings) or 'no unit'})")
+
+
+def _types(param: Param) -> tuple[type, ...]:
+    return param.type if isinstance(param.type, tuple) else (param.type,)
+
+
+def check_value(param: Param, value: Any) -> Any:
+    """The value converted to the parameter's type and unit; raises ValueError with a one-line reason."""
+    types = _types(param)
+    if value is None:
+        if param.default is None:
+            return None
+        raise ValueError(f"'{param.name}' needs {_expected(types, param)}, not null")
+    if isinstance(value, bool):
+        if bool in types:
+            return value
+        raise ValueError(f"'{param.name}' needs {_expected(types, param)}, not {str(value).lower()}")
+    if isinstance(value, (int, float)):
+        if float in types:
+            return float(value)
+        if int in types and isinstance(value, int):
+            return value
+        if int in types and float(value).is_integer():
+            return int(value)
+        raise ValueError(f"'{param.name}' needs {_expected(types, param)}, not {value!r}")
+    if isinstance(value, str):
+        if float in types and param.unit:
+            return parse_quantity(value, param.unit)
+        if str in types:
+            if param.choices and value not in param.choices:
+                raise ValueError(
+                    f"'{param.name}' must be one of {', '.join(param.choices)}, not '{value}'"
+                    + suggest(value, param.choices)
+                )
+            return value
+        if (float in types or int in types) and not param.unit and not _QUANTITY.match(value):
+            raise ValueError(f"'{param.name}' needs {_expected(types, param)}, not the string '{value}'")
+        if float in types or int in types:
+            try:
+                number = parse_quantity(value, param.unit)
+            except ValueError as err:
+                raise ValueError(f"'{param.name}': {err}") from None
+            return number if float in types or not number.is_integer() else int(number)
+        raise ValueError(f"'{param.name}' needs {_expected(types, param)}, not the string '{value}'")
+    if isinstance(value, list) and list in types:
+        return list(value)
+    kind = "a list" if isinstance(value, list) else "a mapping" if isinstance(value, dict) else type(value).__name__
+    raise ValueError(f"'{param.name}' needs {_expected(types, param)}, not {kind}")
+
+
+def _expected(types: tuple[type, ...], param: Param) -> str:
+    names = " or ".join(_TYPE_NAMES.get(t, t.__name__) for t in types)
+    return f"{names} [{param.unit}]" if param.unit else names
+
+
+def describe_param(param: Param) -> str:
+    """One line for ``homing nodes``: ``seconds: float [s] = 5 — doc``."""
+    types = "|".join(t.__name__ for t in _types(param))
+    unit = f" [{param.unit}]" if param.unit else ""
+    default = "required" if param.default is REQUIRED else f"= {param.default!r}"
+    choices = f" one of {', '.join(param.choices)}" if param.choices else ""
+    return f"{param.name}: {types}{unit} {default}{choices}" + (f" — {param.doc}" if param.doc else "")
+
+
+# --------------------------------------------------------------------------- JSON Schema
+
+
+def _param_schema(param: Param) -> dict[str, Any]:
+    alts: list[dict[str, Any]] = []
+    for t in _types(param):
+        if t is float:
+            alts.append({"type": "number"})
+            if param.unit:
+                units = "|".join(re.escape(u) for u in UNITS.get(param.unit, {param.unit: 1}))
+                alts.append({"type": "string", "pattern": rf"^\s*[-+]?[0-9.]+(e[-+]?[0-9]+)?\s*({units})\s*$"})
+        elif t is int:
+            alts.append({"type": "integer"})
+        elif t is bool:
+            alts.append({"type": "boolean"})
+        elif t is str:
+            alts.append({"type": "string", "enum": list(param.choices)} if param.choices else {"type": "string"})
+        elif t is list:
+            alts.append({"type": "array"})
+    alts.append({"type": "string", "pattern": r"^\$[A-Za-z_][A-Za-z0-9_]*$"})  # $name substitution
+    out: dict[str, Any] = {"anyOf": alts}
+    doc = param.doc + (f" [{param.unit}]" if param.unit else "")
+    if doc:
+        out["description"] = doc
+    if param.default is not REQUIRED and isinstance(param.default, (int, float, str, bool, list)):
+        out["default"] = param.default
+    return out
+
+
+def _node_schema(spec: NodeSpec) -> dict[str, Any]:
+    props: dict[str, Any] = {"name": {"type": "string", "description": "the node's name in the view and logs"}}
+    for p in spec.params:
+        props[p.name] = _param_schema(p)
+    required = [p.name for p in spec.params if p.required]
+    for slot in spec.child_slots:
+        if slot == "children":
+            props[slot] = {"type": "array", "items": {"$ref": "#/$defs/node"}}
+        else:
+            props[slot] = {"$ref": "#/$defs/node"}
+        required.append(slot)
+    body: dict[str, Any] = {"type": "object", "properties": props, "additionalProperties": False}
+    if required:
+        body["required"] = required
+    forms: list[dict[str, Any]] = [body]
+    if spec.child_slots == ("children",):
+        forms.append({"type": "array", "items": {"$ref": "#/$defs/node"}})
+    if not required:
+        forms.append({"type": "null"})
+    return {
+        "type": "object",
+        "properties": {spec.name: {"anyOf": forms, "description": spec.doc}},
+        "required": [spec.name],
+        "additionalProperties": False,
+    }
+
+
+def json_schema() -> dict[str, Any]:
+    """A JSON Schema of mission files for the nodes registered now (call ``load_nodes()`` first)."""
+    node_forms: list[dict[str, Any]] = [_node_schema(NODES[n]) for n in sorted(NODES)]
+    bare = sorted(n for n, s in NODES.items() if not any(p.required for p in s.params) and not s.child_slots)
+    node_forms.append({"type": "string", "enum": bare, "description": "a node without parameters"})
+    # A subtree is used like a node under its own name: any other single-key mapping.
+    node_forms.append({"type": "object", "minProperties": 1, "maxProperties": 1,
+                       "not": {"anyOf": [{"required": [n]} for n in sorted(NODES)]},
+                       "description": "a subtree, by name, with its parameters"})  # fmt: skip
+    service = {"anyOf": [{"type": "string", "enum": sorted(SERVICES)}, {"type": "object", "maxProperties": 1}]}
+    if not SERVICES:
+        service = {"anyOf": [{"type": "string"}, {"type": "object", "maxProperties": 1}]}
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": "https://homing.invalid/mission.schema.json",
+        "title": "homing mission",
+        "type": "object",
+        "properties": {
+            "mission": {"type": "string", "description": TOP_KEYS["mission"]},
+            "doc": {"type": "string"},
+            "rate": {"type": "number", "exclusiveMinimum": 0, "description": TOP_KEYS["rate"]},
+            "services": {"type": "array", "items": service, "description": TOP_KEYS["services"]},
+            "params": {"type": "object", "description": TOP_KEYS["params"]},
+            "include": {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}]},
+            "subtrees": {
+                "type": "object",
+                "additionalProperties": {
+                    "type": "object",
+                    "properties": {"doc": {"type": "string"}, "params": {"type": "object"},
+                                   "tree": {"$ref": "#/$defs/node"}},  # fmt: skip
+                    "required": ["tree"],
+                    "additionalProperties": False,
+                },
+            },
+            "tree": {"$ref": "#/$defs/node"},
+            "view": {"type": "object", "properties": {"blackboard": {"type": "array", "items": {"type": "string"}}}},
+        },
+        "additionalProperties": False,
+        "$defs": {"node": {"anyOf": node_forms}},
+    }

@@ -1,0 +1,161 @@
+"""The runner's tick (ARCHITECTURE.md) against a scripted adapter: order, commands, stopping, logging."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from homing.behaviours.registry import Param, register_service
+from homing.missions.compiler import compile_mission
+from homing.missions.runner import Runner, RunResult, StatusChange, parse_duration
+from homing.robot import Observation
+from py_trees.common import Status
+
+from tests.conftest import REPO
+from tests.mission_fakes import FakeRobot
+
+CALLS: list[tuple[str, float]] = []
+
+
+@register_service("_test_odometer", params=(Param("scale", float, 1.0),), writes=("/test/distance",))
+class Odometer:
+    """Test service: integrates |v| from odometry into /test/distance."""
+
+    name = "_test_odometer"
+    writes = ("/test/distance",)
+
+    def __init__(self, scale: float = 1.0):
+        self.scale = scale
+        self.total = 0.0
+        self.last: float | None = None
+
+    def setup(self, robot: object, blackboard: object) -> None:
+        self.bb = blackboard
+        self.bb.set("/test/distance", 0.0, overwrite=True)  # type: ignore[attr-defined]
+
+    def update(self, obs: Observation) -> None:
+        CALLS.append(("service", obs.stamp))
+        if self.last is not None:
+            self.total += abs(obs.odom.twist.v) * (obs.stamp - self.last) * self.scale
+        self.last = obs.stamp
+        self.bb.set("/test/distance", self.total, overwrite=True)  # type: ignore[attr-defined]
+
+    def shutdown(self) -> None:
+        CALLS.append(("shutdown", -1.0))
+
+
+def mission(tmp: Path, tree: str, services: str = "[]", extra: str = "") -> Path:
+    path = tmp / "m.yaml"
+    path.write_text(f"services: {services}\nrate: 10\n{extra}tree:\n{tree}")
+    return path
+
+
+def run(path: Path, robot: FakeRobot, **kw: object) -> tuple[RunResult, list[StatusChange]]:
+    log: list[StatusChange] = []
+    runner = Runner(compile_mission(path), robot, on_change=log.append, **kw)  # type: ignore[arg-type]
+    return runner.run(), log
+
+
+def test_drive_then_finish_stops_the_robot(tmp_path: Path) -> None:
+    path = mission(tmp_path, "  sequence:\n    - Drive: {v: 0.2, seconds: 1}\n    - Wait: 0.5 s\n")
+    robot = FakeRobot()
+    result, log = run(path, robot)
+    assert result.reason == "success"
+    # 10 ticks drive at 0.2 m/s (t = 0.0 … 0.9), then zero while waiting, zero at the end
+    driving = [c for c in robot.commands if c[1] > 0]
+    assert len(driving) == 10 and driving[0][0] == 0.0 and driving[-1][0] == pytest.approx(0.9)
+    assert robot.pose.x == pytest.approx(0.2, abs=1e-9), "1 s at 0.2 m/s on the adapter clock"
+    assert robot.commands[-1][1:] == (0.0, 0.0) and result.final_command.v == 0.0
+    assert result.time == pytest.approx(1.5)
+    wait_done = [c for c in log if c.node == "Wait" and c.new == Status.SUCCESS]
+    assert len(wait_done) == 1 and wait_done[0].time == pytest.approx(1.5)
+
+
+def test_services_update_before_the_tree_and_shut_down(tmp_path: Path) -> None:
+    CALLS.clear()
+    path = mission(
+        tmp_path,
+        "  sequence:\n    - Drive: {v: 0.5, seconds: 2}\n    - CheckBlackboard: {key: /test/distance, op: '>=', value: 0.99}\n",
+        services="[{_test_odometer: {scale: 1.0}}]",
+    )
+    result, _ = run(path, FakeRobot())
+    assert result.reason == "success", "the service's distance reached the check on the tree's tick"
+    assert CALLS[0] == ("service", 0.0) and CALLS[-1][0] == "shutdown"
+
+
+def test_time_limit_halts_running_leaf_and_stops(tmp_path: Path) -> None:
+    path = mission(tmp_path, "  Drive: {v: 0.3, seconds: 100}\n")
+    robot = FakeRobot()
+    result, log = run(path, robot, until=2.0)
+    assert result.reason == "time_limit" and result.time == pytest.approx(2.0)
+    assert result.ticks == 20
+    assert robot.commands[-1][1:] == (0.0, 0.0)
+    assert log[-1].node == "Drive" and log[-1].new == Status.INVALID and log[-1].time == pytest.approx(2.0)
+
+
+def test_ctrl_c_stops_robot_and_halts_tree(tmp_path: Path) -> None:
+    path = mission(tmp_path, "  Drive: {v: 0.3, seconds: 100}\n")
+    robot = FakeRobot()
+
+    def interrupt(runner: Runner) -> None:
+        if runner.ticks == 7 and runner.mission.root.status == Status.RUNNING:
+            raise KeyboardInterrupt
+
+    log: list[StatusChange] = []
+    runner = Runner(compile_mission(path), robot, on_change=log.append, on_tick=interrupt)
+    result = runner.run()
+    assert result.reason == "interrupted" and result.ticks == 7
+    assert robot.commands[-1][1:] == (0.0, 0.0)
+    assert runner.mission.root.status == Status.INVALID
+
+
+def test_battery_guard_preempts_and_rate_override(tmp_path: Path) -> None:
+    tree = (
+        "  reactive_fallback:\n"
+        "    - sequence: [{BatteryBelow: {percent: 50}}, {MissionState: {state: MapHome}}]\n"
+        "    - Drive: {v: 0.1, seconds: 1000}\n"
+    )
+    robot = FakeRobot(battery=60.0, drain=1.0)  # crosses 50 % at t = 10 s
+    result, log = run(mission(tmp_path, tree), robot, rate=5.0)
+    assert result.reason == "success"
+    halted = [c for c in log if c.node == "Drive" and c.new == Status.INVALID]
+    assert len(halted) == 1 and halted[0].time == pytest.approx(10.2), "first 5 Hz tick with 60 - t < 50"
+    assert result.ticks == 52
+
+
+def test_same_seed_same_log(tmp_path: Path) -> None:
+    path = mission(tmp_path, "  sequence: [{Drive: {v: 0.1, seconds: 1}}, {Wait: 1}]\n")
+    logs = [[c.line() for c in run(path, FakeRobot(seed=3), seed=3)[1]] for _ in range(2)]
+    assert logs[0] == logs[1] and len(logs[0]) >= 6
+
+
+def test_parse_duration() -> None:
+    assert parse_duration("2h") == 7200 and parse_duration("90 min") == 5400 and parse_duration("30") == 30
+    with pytest.raises(ValueError):
+        parse_duration("5 m")
+
+
+def test_cli_run_no_view_prints_timestamped_changes(tmp_path: Path) -> None:
+    path = mission(tmp_path, "  sequence: [{Drive: {v: 0.1, seconds: 1}}, Stop]\n")
+    out = subprocess.run(
+        [sys.executable, "-m", "homing.missions.cli", "run", str(path), "--adapter", "tests.mission_fakes:make_robot",
+         "--seed", "1", "--no-view"],
+        capture_output=True, text=True, timeout=60, cwd=REPO,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert "[      0.00 s] Drive: INVALID -> RUNNING" in lines
+    assert "[      1.00 s] Drive: RUNNING -> SUCCESS" in lines
+    assert lines[-2].startswith("stopped: success at t=1.00 s after 11 ticks")
+    assert lines[-1] == "final command v=0.000 m/s ω=0.000 rad/s (robot stopped)"
+
+
+def test_cli_run_bad_until_is_a_user_error(tmp_path: Path) -> None:
+    path = mission(tmp_path, "  Stop\n")
+    out = subprocess.run(
+        [sys.executable, "-m", "homing.missions.cli", "run", str(path), "--adapter", "tests.mission_fakes:make_robot", "--until", "3 m"],
+        capture_output=True, text=True, timeout=60, cwd=REPO,
+    )  # fmt: skip
+    assert out.returncode == 2 and "Traceback" not in out.stderr and "wrong unit 'm'" in out.stderr
