@@ -1,0 +1,86 @@
+"""The ``navigation`` service: owns the :class:`~homing.navigation.navigator.Navigator` and keeps its costmap fresh.
+
+Like Nav2's planner and controller servers beside a BT: the service builds
+one navigator (costmap, planner and controller plugins chosen by name in the
+mission's ``services:`` parameters), writes it to ``/nav/navigator``, and
+every tick, before the tree, refreshes its costmap from ``/map/grid``, the
+latest scan and ``/map/pose``, so leaves that only read the costmap (frontier
+ranking, path checks) see the present world even when nothing navigates.
+Leaves drive with it (:mod:`homing.behaviours.motion`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from homing.behaviours.registry import Param, register_service
+from homing.navigation.controller import CONTROLLERS
+from homing.navigation.costmap import CostmapParams
+from homing.navigation.navigator import Navigator
+from homing.navigation.planner import PLANNERS
+from homing.robot import Observation, RobotAdapter
+from homing.robot.turtlebot import FOOTPRINT_RADIUS
+from py_trees.common import Access
+
+NAVIGATOR_KEY = "/nav/navigator"
+GRID_KEY = "/map/grid"
+POSE_KEY = "/map/pose"
+MAP_TO_ODOM_KEY = "/map/map_to_odom"
+
+
+@register_service(
+    "navigation",
+    params=(
+        Param("planner", str, "fmm", "", "global planner plugin", choices=tuple(sorted(PLANNERS))),
+        Param("controller", str, "rpp", "", "local controller plugin", choices=tuple(sorted(CONTROLLERS))),
+        Param("footprint_radius", float, FOOTPRINT_RADIUS, "m", "robot radius the costmap inflates by"),
+        Param("inflation_radius", float, 0.55, "m", "inflation cost reaches this far from obstacles"),
+        Param("cost_scaling_factor", float, 5.0, "1/m", "decay rate of the inflation cost"),
+        Param("max_speed", float, 0.5, "m/s", "controller's cruising speed (never above 0.5)"),
+        Param("xy_tolerance", float, 0.15, "m", "goal reached within this distance"),
+        Param("yaw_tolerance", float, 0.25, "rad", "and this heading error"),
+        Param("allow_unknown", bool, True, "", "plan through unknown cells"),
+    ),
+    writes=(NAVIGATOR_KEY,),
+    requires=("grid_slam",),
+)
+class NavigationService:
+    """Costmap, global planner and local controller, chosen by name; writes ``/nav/navigator``."""
+
+    name = "navigation"
+    writes = (NAVIGATOR_KEY,)
+    reads = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY)
+
+    def __init__(self, planner: str = "fmm", controller: str = "rpp", footprint_radius: float = FOOTPRINT_RADIUS,
+                 inflation_radius: float = 0.55, cost_scaling_factor: float = 5.0, max_speed: float = 0.5,
+                 xy_tolerance: float = 0.15, yaw_tolerance: float = 0.25, allow_unknown: bool = True) -> None:
+        self.navigator = Navigator(
+            planner=planner, controller=controller,
+            costmap=CostmapParams(footprint_radius=footprint_radius, inflation_radius=inflation_radius,
+                                  cost_scaling_factor=cost_scaling_factor),
+            planner_params={"allow_unknown": allow_unknown},
+            controller_params={"desired_v": max_speed, "footprint_radius": footprint_radius},
+            xy_tolerance=xy_tolerance, yaw_tolerance=yaw_tolerance,
+        )
+        self.bb: Any = None
+
+    def setup(self, robot: RobotAdapter, blackboard: Any) -> None:
+        self.bb = blackboard
+        for key in self.reads:
+            blackboard.register_key(key=key, access=Access.READ)
+        blackboard.set(NAVIGATOR_KEY, self.navigator, overwrite=True)
+
+    def update(self, obs: Observation) -> None:
+        """Refresh the costmap (cheap when neither the grid nor the scan changed)."""
+        grid, pose = self._get(GRID_KEY), self._get(POSE_KEY)
+        if grid is not None and pose is not None:
+            self.navigator.update_costmap(obs, grid, pose, self._get(MAP_TO_ODOM_KEY))
+
+    def shutdown(self) -> None:
+        self.navigator.cancel()
+
+    def _get(self, key: str) -> Any:
+        try:
+            return self.bb.get(key)
+        except KeyError:
+            return None

@@ -1,0 +1,251 @@
+"""A layered 2-D costmap: static layer, obstacle layer from the latest scan, inflation (Nav2 costmap_2d).
+
+The costmap follows Nav2's ``costmap_2d`` (Marder-Eppstein et al., "The Office
+Marathon", ICRA 2010; Lu et al., "Layered Costmaps", IROS 2014): three layers
+are combined into one (H, W) uint8 cost array in the ``map`` frame.
+
+- **static**: the occupancy grid (FREE 0 / OCCUPIED 100 / UNKNOWN −1,
+  row 0 at the lowest y) — occupied cells are ``LETHAL``, unknown cells
+  ``NO_INFORMATION``;
+- **obstacle**: what the latest scans see, marked at the rays' end points and
+  cleared by ray tracing from the laser, kept between scans until cleared
+  (by later rays or by :meth:`Costmap.clear`, the "clear costmap" recovery);
+- **inflation**: every cell within ``footprint_radius`` (+ padding) of a lethal
+  cell is ``INSCRIBED`` (the robot's centre there means contact); beyond it the
+  cost decays as ``252·exp(−k·(d − r_inscribed))`` up to ``inflation_radius``,
+  exactly Nav2's inflation layer, so planners keep a margin from walls.
+
+The TurtleBot is round, so a cell's cost *is* the footprint cost of the robot
+centred there; do not use this for non-circular robots.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+from homing.robot import Pose2, Scan
+from homing.robot.turtlebot import FOOTPRINT_RADIUS
+
+# Nav2's cost values (nav2_costmap_2d/cost_values.hpp)
+FREE = 0
+MAX_NON_OBSTACLE = 252
+INSCRIBED = 253
+LETHAL = 254
+NO_INFORMATION = 255
+
+INFLATION_RADIUS = 0.55  # [m] Nav2 default
+COST_SCALING_FACTOR = 5.0  # [1/m] how fast the inflation cost decays past the inscribed radius
+OBSTACLE_MAX_RANGE = 2.5  # [m] scan returns farther than this do not mark (Nav2 default)
+RAYTRACE_MAX_RANGE = 3.0  # [m] rays clear the obstacle layer up to this far (Nav2 default)
+
+
+@dataclass(frozen=True)
+class CostmapParams:
+    """Costmap configuration: footprint, inflation and the scan's marking/clearing ranges [m]."""
+
+    footprint_radius: float = FOOTPRINT_RADIUS  # [m]
+    footprint_padding: float | None = None  # [m] None: half a cell, the rasterisation error of walls
+    inflation_radius: float = INFLATION_RADIUS  # [m]
+    cost_scaling_factor: float = COST_SCALING_FACTOR  # [1/m]
+    obstacle_max_range: float = OBSTACLE_MAX_RANGE  # [m]
+    raytrace_max_range: float = RAYTRACE_MAX_RANGE  # [m]
+    use_scan: bool = True
+
+
+def grid_arrays(grid: Any) -> tuple[np.ndarray, float, tuple[float, float]]:
+    """The (H, W) int8 view, resolution [m] and origin (x, y) [m] of an occupancy grid.
+
+    Accepts :class:`homing.mapping.grid.OccupancyGrid`, :class:`homing.map_server.MapData`
+    or anything with the same attributes (``to_int8()``/``int8()``/``data``/``grid``,
+    ``resolution``, ``origin`` as a Pose2 or a sequence). The origin's yaw must be 0.
+    """
+    data = None
+    for attr in ("to_int8", "int8", "as_int8", "occupancy"):
+        f = getattr(grid, attr, None)
+        if callable(f):
+            data = f()
+            break
+    if data is None:
+        for attr in ("data", "grid", "values"):
+            v = getattr(grid, attr, None)
+            if isinstance(v, np.ndarray):
+                data = v
+                break
+    if data is None:
+        raise TypeError(f"cannot read an occupancy array from {type(grid).__name__}")
+    origin = grid.origin
+    if isinstance(origin, Pose2):
+        ox, oy, oyaw = origin.x, origin.y, origin.theta
+    else:
+        seq = tuple(float(v) for v in origin)
+        ox, oy, oyaw = seq[0], seq[1], (seq[2] if len(seq) > 2 else 0.0)
+    if abs(oyaw) > 1e-9:
+        raise ValueError("costmaps need a grid whose origin has zero yaw")
+    return np.asarray(data), float(grid.resolution), (ox, oy)
+
+
+class Costmap:
+    """Static + obstacle + inflation layers over one (H, W) grid in the ``map`` frame.
+
+    ``cost`` is (H, W) uint8 with Nav2's values; ``clearance`` is (H, W) float32,
+    the distance [m] from each cell centre to the nearest lethal cell centre.
+    Cell (r, c) has its centre at ``origin + ((c + ½)·res, (r + ½)·res)``.
+    Call :meth:`update_static` with every new grid and :meth:`update_scan`
+    with every new scan; both recompute the inflation.
+    """
+
+    def __init__(self, params: CostmapParams | None = None) -> None:
+        self.params = params or CostmapParams()
+        self.resolution = 0.05  # [m]
+        self.origin = (0.0, 0.0)  # [m] lower-left corner of cell (0, 0)
+        self.static: np.ndarray = np.zeros((0, 0), dtype=np.uint8)
+        self.obstacles = np.zeros((0, 0), dtype=bool)
+        self.cost: np.ndarray = np.zeros((0, 0), dtype=np.uint8)
+        self.clearance = np.zeros((0, 0), dtype=np.float32)
+        self.version = 0  # bumped whenever ``cost`` changes
+
+    # -- geometry -----------------------------------------------------------------
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (int(self.static.shape[0]), int(self.static.shape[1]))
+
+    @property
+    def inscribed_radius(self) -> float:
+        """Centre distance [m] to a lethal cell centre under which the robot touches it."""
+        pad = self.params.footprint_padding
+        return self.params.footprint_radius + (0.5 * self.resolution if pad is None else pad)
+
+    def world_to_cell(self, xy: np.ndarray) -> np.ndarray:
+        """(N, 2) map-frame points [m] → (N, 2) int (row, col), possibly outside the grid."""
+        p = np.asarray(xy, dtype=float).reshape(-1, 2)
+        col = np.floor((p[:, 0] - self.origin[0]) / self.resolution).astype(np.int64)
+        row = np.floor((p[:, 1] - self.origin[1]) / self.resolution).astype(np.int64)
+        return np.column_stack([row, col])
+
+    def cell_to_world(self, rc: np.ndarray) -> np.ndarray:
+        """(N, 2) (row, col) cells (float allowed) → (N, 2) map-frame points of their centres [m]."""
+        c = np.asarray(rc, dtype=float).reshape(-1, 2)
+        x = self.origin[0] + (c[:, 1] + 0.5) * self.resolution
+        y = self.origin[1] + (c[:, 0] + 0.5) * self.resolution
+        return np.column_stack([x, y])
+
+    def inside(self, rc: np.ndarray) -> np.ndarray:
+        """(N,) bool: which (row, col) cells lie in the grid."""
+        rc = np.asarray(rc).reshape(-1, 2)
+        h, w = self.shape
+        return (rc[:, 0] >= 0) & (rc[:, 0] < h) & (rc[:, 1] >= 0) & (rc[:, 1] < w)
+
+    def cost_at(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) uint8 costs at map-frame points [m]; ``NO_INFORMATION`` outside the grid."""
+        rc = self.world_to_cell(xy)
+        out = np.full(len(rc), NO_INFORMATION, dtype=np.uint8)
+        ok = self.inside(rc)
+        out[ok] = self.cost[rc[ok, 0], rc[ok, 1]]
+        return out
+
+    # -- layers -------------------------------------------------------------------
+    def update_static(self, grid: Any) -> None:
+        """Take a new occupancy grid as the static layer (see :func:`grid_arrays`)."""
+        data, res, origin = grid_arrays(grid)
+        self.set_static(data, res, origin)
+
+    def set_static(self, data: np.ndarray, resolution: float, origin: tuple[float, float]) -> None:
+        """Static layer from an (H, W) int8 grid (≥ 50 lethal, < 0 unknown), resolution [m], origin (x, y) [m].
+
+        If the grid moved or grew, obstacle marks are carried over at their map positions.
+        """
+        data = np.asarray(data)
+        same = (
+            data.shape == self.static.shape
+            and resolution == self.resolution
+            and origin == self.origin
+        )
+        old_pts = self.cell_to_world(np.argwhere(self.obstacles)) if not same and self.obstacles.any() else None
+        static = np.zeros(data.shape, dtype=np.uint8)
+        static[data < 0] = NO_INFORMATION
+        static[data >= 50] = LETHAL
+        self.static = static
+        if not same:
+            self.resolution = float(resolution)
+            self.origin = (float(origin[0]), float(origin[1]))
+            self.obstacles = np.zeros(data.shape, dtype=bool)
+            if old_pts is not None:
+                self._mark(old_pts)
+        self._inflate()
+
+    def update_scan(self, scan: Scan, pose_in_map: Pose2) -> None:
+        """Clear the obstacle layer along the scan's rays and mark their end points (map frame)."""
+        if not self.params.use_scan or self.static.size == 0:
+            return
+        ok = scan.valid()
+        if not ok.any():
+            return
+        sensor = pose_in_map.compose(scan.laser_pose)
+        ang = scan.angles[ok] + sensor.theta
+        rng = scan.ranges[ok].astype(float)
+        # Clearing: every cell a ray crosses before its end point is free of obstacles.
+        reach = np.minimum(rng, self.params.raytrace_max_range) - self.resolution
+        step = 0.5 * self.resolution
+        n = max(1, int(math.ceil(float(reach.max(initial=0.0)) / step)))
+        t = np.arange(n) * step
+        along = np.where(t[None, :] < reach[:, None], t[None, :], np.nan)
+        xs = sensor.x + along * np.cos(ang)[:, None]
+        ys = sensor.y + along * np.sin(ang)[:, None]
+        pts = np.column_stack([xs.ravel(), ys.ravel()])
+        pts = pts[np.isfinite(pts[:, 0])]
+        rc = self.world_to_cell(pts)
+        rc = rc[self.inside(rc)]
+        self.obstacles[rc[:, 0], rc[:, 1]] = False
+        # Marking: end points within the marking range.
+        near = rng <= self.params.obstacle_max_range
+        ends = np.column_stack([sensor.x + rng * np.cos(ang), sensor.y + rng * np.sin(ang)])[near]
+        self._mark(ends)
+        self._inflate()
+
+    def clear(self) -> None:
+        """Empty the obstacle layer (Nav2's ClearEntireCostmap); the static layer stays."""
+        if self.obstacles.size:
+            self.obstacles[:] = False
+            self._inflate()
+
+    def _mark(self, pts: np.ndarray) -> None:
+        rc = self.world_to_cell(pts)
+        rc = rc[self.inside(rc)]
+        self.obstacles[rc[:, 0], rc[:, 1]] = True
+
+    def _inflate(self) -> None:
+        """Combine the layers and inflate lethal cells by the footprint and the decay."""
+        lethal = (self.static == LETHAL) | self.obstacles
+        if lethal.any():
+            # cv2's precise L2 transform is the exact Euclidean distance to the nearest zero pixel.
+            free = np.where(lethal, 0, 255).astype(np.uint8)
+            d = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(np.float32)
+            d *= self.resolution
+        else:
+            d = np.full(lethal.shape, np.inf, dtype=np.float32)
+        self.clearance = d
+        self.cost = inflation_cost(d, self.inscribed_radius, self.params.inflation_radius,
+                                   self.params.cost_scaling_factor)
+        # Unknown cells stay unknown unless the robot would touch something there.
+        unknown = (self.static == NO_INFORMATION) & (self.cost < INSCRIBED)
+        self.cost[unknown] = NO_INFORMATION
+        self.version += 1
+
+
+def inflation_cost(distance: np.ndarray, inscribed_radius: float, inflation_radius: float,
+                   scaling: float) -> np.ndarray:
+    """Nav2's inflation cost of cells at ``distance`` [m] from the nearest lethal cell centre.
+
+    0 → LETHAL; ≤ inscribed radius → INSCRIBED; up to ``inflation_radius`` →
+    ``252·exp(−scaling·(d − r_inscribed))``; beyond → FREE. Returns uint8, same shape.
+    """
+    d = np.asarray(distance, dtype=np.float64)
+    decay = np.floor(MAX_NON_OBSTACLE * np.exp(-scaling * np.maximum(d - inscribed_radius, 0.0)))
+    cost = np.where(d <= inflation_radius, decay, FREE).astype(np.uint8)
+    cost[d <= inscribed_radius] = INSCRIBED
+    cost[d <= 0.0] = LETHAL
+    return cost

@@ -1,0 +1,286 @@
+"""The navigator: costmap, global planner and local controller plugins behind one ``step`` (Nav2's bt_navigator + servers).
+
+One :class:`Navigator` holds a goal and, every tick, refreshes the costmap
+from the grid and the latest scan, replans at a fixed period (or at once
+when the path is blocked or lost), runs the controller, checks progress on
+odometry, and returns ``(status, Twist2, feedback)``. It never blocks: a
+behaviour calls :meth:`Navigator.step` from its ``update`` and writes the
+command to ``/cmd_vel``. Failures are typed (the planner's
+:class:`~homing.navigation.planner.PlanningError`, the controller's
+:class:`~homing.navigation.controller.ControllerError`, :class:`NoProgress`)
+and land in ``feedback.error`` so a recovery can choose by cause.
+
+Frames: goal, path and ``pose_in_map`` in ``map``; progress and the motion of
+a stale scan measured in ``odom``. Time is the observation's stamp (the
+adapter's clock).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from homing.navigation.controller import (
+    CollisionAhead,
+    ControllerError,
+    InvalidPath,
+    make_controller,
+)
+from homing.navigation.costmap import INSCRIBED, Costmap, CostmapParams
+from homing.navigation.planner import ESCAPE_RADIUS, PlanningError, make_planner, path_length
+from homing.robot import Observation, Pose2, Twist2
+from homing.robot.frames import wrap_angle
+
+XY_TOLERANCE = 0.15  # [m] goal reached (Nav2 default 0.25; the dock staging pose wants better)
+YAW_TOLERANCE = 0.25  # [rad]
+REPLAN_PERIOD = 1.0  # [s] Nav2's default 1 Hz replanning
+PLAN_PATIENCE = 2.0  # [s] how long planning may keep failing before the goal fails
+BLOCKED_TIMEOUT = 8.0  # [s] stopped by an obstacle in the scan this long: fail
+PROGRESS_RADIUS = 0.25  # [m] Nav2 SimpleProgressChecker required_movement_radius (0.5 there)
+PROGRESS_TIME = 10.0  # [s] Nav2 movement_time_allowance
+STATIC_PERIOD = 1.0  # [s] re-read an unchanged grid object at most this often
+HEADING_GAIN = 1.5  # [1/s] final in-place rotation: ω = gain·error
+HEADING_MIN_OMEGA = 0.3  # [rad/s]
+HEADING_MAX_OMEGA = 1.2  # [rad/s]
+ODOM_HISTORY = 3.0  # [s] odometry kept to move a stale scan to the present
+
+
+class NavStatus(enum.Enum):
+    """Where a navigation goal is."""
+
+    IDLE = "idle"
+    RUNNING = "running"
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"
+    CANCELLED = "cancelled"
+
+
+class NavigationError(Exception):
+    """A navigation goal failed for a reason that is neither the planner's nor the controller's."""
+
+
+class NoProgress(NavigationError):
+    """The robot has not moved ``PROGRESS_RADIUS`` in ``PROGRESS_TIME`` (Nav2's progress checker)."""
+
+
+@dataclass
+class NavFeedback:
+    """What the navigator reports each step (for leaves, the view and pictures)."""
+
+    goal: Pose2 | None = None
+    path: np.ndarray | None = None  # (N, 2) [m], map frame
+    distance_remaining: float = math.inf  # [m] along the path
+    error: Exception | None = None
+    message: str = ""
+    replans: int = 0
+    recoveries: list[str] = field(default_factory=list)
+
+
+class Navigator:
+    """Costmap + planner + controller chosen by name; see the module doc.
+
+    ``planner``: ``dijkstra``, ``fmm`` or ``astar``; ``controller``: ``rpp``;
+    ``*_params`` go to their constructors. Not thread-safe; one goal at a time.
+    """
+
+    def __init__(self, planner: str = "fmm", controller: str = "rpp",
+                 costmap: CostmapParams | None = None,
+                 planner_params: dict[str, Any] | None = None,
+                 controller_params: dict[str, Any] | None = None,
+                 xy_tolerance: float = XY_TOLERANCE, yaw_tolerance: float = YAW_TOLERANCE,
+                 replan_period: float = REPLAN_PERIOD, plan_patience: float = PLAN_PATIENCE,
+                 blocked_timeout: float = BLOCKED_TIMEOUT, progress_radius: float = PROGRESS_RADIUS,
+                 progress_time: float = PROGRESS_TIME) -> None:
+        self.costmap = Costmap(costmap)
+        self.planner = make_planner(planner, **(planner_params or {}))
+        self.controller = make_controller(controller, **(controller_params or {}))
+        self.xy_tolerance = xy_tolerance  # [m]
+        self.yaw_tolerance = yaw_tolerance  # [rad]
+        self.replan_period = replan_period  # [s]
+        self.plan_patience = plan_patience  # [s]
+        self.blocked_timeout = blocked_timeout  # [s]
+        self.progress_radius = progress_radius  # [m]
+        self.progress_time = progress_time  # [s]
+        self.status = NavStatus.IDLE
+        self.feedback = NavFeedback()
+        self.goal: Pose2 | None = None
+        self.goal_xy_tolerance = xy_tolerance  # [m]
+        self.goal_yaw_tolerance = yaw_tolerance  # [rad]
+        self._static_key: tuple[Any, ...] | None = None
+        self._static_time = -math.inf
+        self._scan_stamp: float | None = None
+        self._odom: deque[tuple[float, Pose2]] = deque()
+        self._reset_goal_state()
+
+    # -- goals ---------------------------------------------------------------------------
+    def set_goal(self, goal: Pose2, xy_tolerance: float | None = None,
+                 yaw_tolerance: float | None = None) -> None:
+        """Start navigating to ``goal`` (map frame); ``yaw_tolerance=math.inf`` ignores the heading."""
+        self.goal = goal
+        self.goal_xy_tolerance = self.xy_tolerance if xy_tolerance is None else xy_tolerance
+        self.goal_yaw_tolerance = self.yaw_tolerance if yaw_tolerance is None else yaw_tolerance
+        self._reset_goal_state()
+        self.status = NavStatus.RUNNING
+        self.feedback = NavFeedback(goal=goal, message="navigating")
+
+    def cancel(self) -> None:
+        """Drop the goal; the next step returns CANCELLED and a zero command."""
+        if self.status is NavStatus.RUNNING:
+            self.status = NavStatus.CANCELLED
+            self.feedback.message = "cancelled"
+        self.controller.reset()
+
+    def _reset_goal_state(self) -> None:
+        self.path: np.ndarray | None = None
+        self._plan_time = -math.inf
+        self._plan_fail_since: float | None = None
+        self._blocked_since: float | None = None
+        self._checkpoint: tuple[float, Pose2] | None = None
+        self._last_stamp: float | None = None
+        self._force_replan = True
+
+    # -- world model -----------------------------------------------------------------------
+    def update_costmap(self, obs: Observation, grid: Any, pose_in_map: Pose2,
+                       map_to_odom: Pose2 | None = None) -> None:
+        """Refresh the static layer from ``grid`` and the obstacle layer from a new scan (idempotent per tick)."""
+        self._remember_odom(obs)
+        version = getattr(grid, "version", None)
+        key = (id(grid), version)
+        # A grid with a ``version`` (homing.mapping.grid) says when it changed; anything else is re-read now and then.
+        stale = version is None and obs.stamp - self._static_time >= STATIC_PERIOD
+        if grid is not None and (key != self._static_key or stale):
+            self.costmap.update_static(grid)
+            self._static_key, self._static_time = key, obs.stamp
+        scan = obs.scan
+        if scan is not None and scan.stamp != self._scan_stamp and self.costmap.cost.size:
+            self._scan_stamp = scan.stamp
+            odom_then = self._odom_at(scan.stamp)
+            if map_to_odom is not None:
+                pose_then = map_to_odom.compose(odom_then)
+            else:
+                pose_then = pose_in_map.compose(obs.odom.pose.between(odom_then))
+            self.costmap.update_scan(scan, pose_then)
+
+    def scan_points_now(self, obs: Observation) -> np.ndarray:
+        """(M, 2) [m] the latest scan's end points in base_link *now*, moved by odometry since the scan."""
+        if obs.scan is None:
+            return np.zeros((0, 2))
+        self._remember_odom(obs)
+        motion = obs.odom.pose.between(self._odom_at(obs.scan.stamp))
+        return motion.transform_points(obs.scan.points())
+
+    def _remember_odom(self, obs: Observation) -> None:
+        if not self._odom or self._odom[-1][0] < obs.stamp:
+            self._odom.append((obs.stamp, obs.odom.pose))
+        while self._odom and self._odom[0][0] < obs.stamp - ODOM_HISTORY:
+            self._odom.popleft()
+
+    def _odom_at(self, stamp: float) -> Pose2:
+        # The latest odometry at or before the stamp (ticks are short next to a scan's period).
+        best = self._odom[0][1] if self._odom else Pose2()
+        for t, p in self._odom:
+            if t <= stamp + 1e-9:
+                best = p
+            else:
+                break
+        return best
+
+    # -- the step ----------------------------------------------------------------------------
+    def step(self, obs: Observation, grid: Any, pose_in_map: Pose2,
+             map_to_odom: Pose2 | None = None) -> tuple[NavStatus, Twist2, NavFeedback]:
+        """One control cycle at ``obs.stamp``: returns the status, the command (base_link) and feedback."""
+        self.update_costmap(obs, grid, pose_in_map, map_to_odom)
+        if self.status is not NavStatus.RUNNING or self.goal is None:
+            return self.status, Twist2(), self.feedback
+        now = obs.stamp
+        dt = 0.1 if self._last_stamp is None else max(now - self._last_stamp, 1e-3)
+        self._last_stamp = now
+        fb = self.feedback
+        fb.error = None
+        # Arrived?
+        dist = pose_in_map.distance_to(self.goal)
+        if dist <= self.goal_xy_tolerance:
+            return self._final_heading(pose_in_map)
+        # Progress, on odometry so a map correction is not mistaken for motion.
+        if self._checkpoint is None or self._checkpoint[1].distance_to(obs.odom.pose) >= self.progress_radius:
+            self._checkpoint = (now, obs.odom.pose)
+        elif now - self._checkpoint[0] > self.progress_time:
+            return self._fail(NoProgress(f"moved less than {self.progress_radius} m in {self.progress_time:.0f} s"))
+        # Plan.
+        if self._force_replan or now - self._plan_time >= self.replan_period or self._path_blocked(pose_in_map):
+            try:
+                self.path = self.planner.plan(self.costmap, pose_in_map, self.goal)
+                self._plan_time, self._plan_fail_since, self._force_replan = now, None, False
+                fb.replans += 1
+            except PlanningError as err:
+                if self._plan_fail_since is None:
+                    self._plan_fail_since = now
+                if now - self._plan_fail_since >= self.plan_patience:
+                    return self._fail(err)
+                fb.error, fb.message = err, f"planning failed: {err}"
+                if self.path is None:
+                    return NavStatus.RUNNING, Twist2(), fb
+                # Otherwise keep following the previous path while planning recovers.
+        assert self.path is not None
+        fb.path = self.path
+        fb.distance_remaining = path_length(np.vstack([[pose_in_map.x, pose_in_map.y], self.path[1:]]))
+        # Control.
+        try:
+            cmd = self.controller.compute(pose_in_map, obs.odom.twist, self.path, self.scan_points_now(obs),
+                                          self.costmap, dt)
+            self._blocked_since = None
+            fb.message = f"{dist:.2f} m to go"
+        except CollisionAhead as err:
+            self._blocked_since = self._blocked_since if self._blocked_since is not None else now
+            self._force_replan = True  # the obstacle is in the costmap now: go around it
+            if now - self._blocked_since >= self.blocked_timeout:
+                return self._fail(err)
+            fb.error, fb.message = err, "obstacle ahead: stopped"
+            return NavStatus.RUNNING, Twist2(), fb
+        except InvalidPath as err:
+            self._force_replan = True
+            fb.error, fb.message = err, str(err)
+            return NavStatus.RUNNING, Twist2(), fb
+        except ControllerError as err:
+            return self._fail(err)
+        return NavStatus.RUNNING, cmd, fb
+
+    def _final_heading(self, pose: Pose2) -> tuple[NavStatus, Twist2, NavFeedback]:
+        assert self.goal is not None
+        err = wrap_angle(self.goal.theta - pose.theta)
+        if not math.isfinite(self.goal_yaw_tolerance) or abs(err) <= self.goal_yaw_tolerance:
+            self.status = NavStatus.SUCCEEDED
+            self.feedback.message = "goal reached"
+            self.feedback.distance_remaining = 0.0
+            self.controller.reset()
+            return self.status, Twist2(), self.feedback
+        w = float(np.clip(HEADING_GAIN * err, -HEADING_MAX_OMEGA, HEADING_MAX_OMEGA))
+        w = math.copysign(max(abs(w), HEADING_MIN_OMEGA), err)
+        self.feedback.message = "turning to the goal's heading"
+        return NavStatus.RUNNING, Twist2(0.0, w), self.feedback
+
+    def _path_blocked(self, pose: Pose2) -> bool:
+        """Whether the costmap now puts an obstacle on the path ahead (sampled every half cell).
+
+        The stretch within ``ESCAPE_RADIUS`` of the robot is not checked: a robot
+        grazing a wall sits in inscribed cells, and the planner lets it out.
+        """
+        if self.path is None or len(self.path) < 2:
+            return self.path is None
+        seg = np.diff(self.path, axis=0)
+        n = np.maximum(1, np.ceil(np.hypot(*seg.T) / (0.5 * self.costmap.resolution))).astype(int)
+        pts = np.concatenate([a + np.linspace(0, 1, k, endpoint=False)[:, None] * d
+                              for a, d, k in zip(self.path[:-1], seg, n, strict=True)])
+        pts = pts[np.hypot(pts[:, 0] - pose.x, pts[:, 1] - pose.y) > ESCAPE_RADIUS]
+        return bool(np.any(self.costmap.cost_at(pts) >= INSCRIBED))
+
+    def _fail(self, err: Exception) -> tuple[NavStatus, Twist2, NavFeedback]:
+        self.status = NavStatus.FAILED
+        self.feedback.error = err
+        self.feedback.message = f"{type(err).__name__}: {err}"
+        self.controller.reset()
+        return self.status, Twist2(), self.feedback

@@ -1,0 +1,112 @@
+"""Costmap layers against geometry: inflation radii and decay, scan marking and clearing, clear, grid growth."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from homing.navigation.costmap import (
+    INSCRIBED,
+    LETHAL,
+    MAX_NON_OBSTACLE,
+    NO_INFORMATION,
+    Costmap,
+    CostmapParams,
+)
+from homing.robot import Pose2, Scan
+from homing.robot.turtlebot import FOOTPRINT_RADIUS
+
+RES = 0.05  # [m]
+
+
+def _single_obstacle() -> Costmap:
+    g = np.zeros((81, 81), dtype=np.int8)
+    g[40, 40] = 100
+    cm = Costmap()
+    cm.set_static(g, RES, (0.0, 0.0))
+    return cm
+
+
+def test_inflation_follows_the_footprint_and_the_decay() -> None:
+    cm = _single_obstacle()
+    rr, cc = np.indices(cm.shape)
+    d = np.hypot(rr - 40, cc - 40) * RES  # exact centre distance to the obstacle cell
+    r_in = FOOTPRINT_RADIUS + 0.5 * RES
+    assert cm.cost[40, 40] == LETHAL
+    assert np.all(cm.cost[(d > 0) & (d <= r_in)] == INSCRIBED)
+    ring = (d > r_in) & (d < 0.55 - 1e-6)  # away from the float32 edge at exactly 0.55
+    want = np.floor(MAX_NON_OBSTACLE * np.exp(-5.0 * (d[ring] - r_in)))
+    assert np.array_equal(cm.cost[ring], want.astype(np.uint8))
+    assert np.all(cm.cost[d > 0.55 + 1e-6] == 0)
+    assert np.allclose(cm.clearance, d, atol=1e-4)
+    # Decay is monotone: farther is never costlier.
+    order = np.argsort(d[ring])
+    assert np.all(np.diff(cm.cost[ring][order].astype(int)) <= 0)
+
+
+def test_unknown_stays_unknown_unless_the_footprint_would_touch() -> None:
+    g = np.full((40, 40), -1, dtype=np.int8)
+    g[:, :20] = 0
+    g[20, 18] = 100
+    cm = Costmap()
+    cm.set_static(g, RES, (0.0, 0.0))
+    assert cm.cost[5, 35] == NO_INFORMATION
+    assert cm.cost[20, 20] == INSCRIBED  # unknown, but 2 cells from the obstacle
+    assert cm.cost[5, 5] == 0
+
+
+def _scan_with_point_ahead(rng_ahead: float, stamp: float = 0.0) -> Scan:
+    ranges = np.full(360, np.inf, dtype=np.float32)
+    ranges[180] = rng_ahead  # angle 0: straight ahead
+    return Scan(stamp, -math.pi, math.radians(1.0), ranges, 0.15, 6.0)
+
+
+def test_scan_marks_and_later_rays_clear() -> None:
+    cm = Costmap()
+    cm.set_static(np.zeros((80, 80), dtype=np.int8), RES, (0.0, 0.0))
+    pose = Pose2(1.0, 2.0, 0.0)
+    cm.update_scan(_scan_with_point_ahead(1.02), pose)
+    rc = cm.world_to_cell(np.array([2.02, 2.0]))[0]
+    assert cm.cost[rc[0], rc[1]] == LETHAL
+    assert cm.obstacles.sum() == 1
+    # The obstacle went away: a ray now passes through its cell to a far point.
+    cm.update_scan(_scan_with_point_ahead(2.0, stamp=0.2), pose)
+    assert cm.cost[rc[0], rc[1]] < INSCRIBED
+    assert cm.obstacles.sum() == 1  # only the new end point
+
+
+def test_marks_beyond_the_marking_range_are_ignored() -> None:
+    cm = Costmap(CostmapParams(obstacle_max_range=2.5))
+    cm.set_static(np.zeros((100, 100), dtype=np.int8), RES, (0.0, 0.0))
+    cm.update_scan(_scan_with_point_ahead(3.0), Pose2(0.5, 2.5, 0.0))
+    assert cm.obstacles.sum() == 0
+
+
+def test_clear_empties_the_obstacle_layer_but_keeps_the_static_map() -> None:
+    g = np.zeros((80, 80), dtype=np.int8)
+    g[10, 10] = 100
+    cm = Costmap()
+    cm.set_static(g, RES, (0.0, 0.0))
+    cm.update_scan(_scan_with_point_ahead(1.0), Pose2(1.0, 2.0, 0.0))
+    assert cm.obstacles.any()
+    cm.clear()
+    assert not cm.obstacles.any()
+    assert cm.cost[10, 10] == LETHAL
+    assert (cm.cost == LETHAL).sum() == 1
+
+
+def test_obstacle_marks_survive_the_grid_growing() -> None:
+    cm = Costmap()
+    cm.set_static(np.zeros((40, 40), dtype=np.int8), RES, (0.0, 0.0))
+    cm.update_scan(_scan_with_point_ahead(1.0), Pose2(0.5, 1.0, 0.0))
+    before = cm.cost_at(np.array([[1.5, 1.0]]))[0]
+    cm.set_static(np.zeros((60, 60), dtype=np.int8), RES, (-0.5, -0.5))  # grew left and down
+    assert before == LETHAL and cm.cost_at(np.array([[1.5, 1.0]]))[0] == LETHAL
+    assert cm.obstacles.sum() == 1
+
+
+def test_rotated_scan_lands_in_the_map_frame() -> None:
+    cm = Costmap()
+    cm.set_static(np.zeros((80, 80), dtype=np.int8), RES, (0.0, 0.0))
+    cm.update_scan(_scan_with_point_ahead(1.0), Pose2(2.0, 1.0, math.pi / 2))  # facing +y
+    assert cm.cost_at(np.array([[2.0, 2.0]]))[0] == LETHAL

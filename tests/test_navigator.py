@@ -1,0 +1,93 @@
+"""The navigator end to end on a kinematic robot in an exact maze: reaches goals without touching, typed failures, cancel."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from homing.navigation.navigator import Navigator, NavStatus
+from homing.navigation.planner import GoalOccupied
+from homing.robot import BatteryState, Bumpers, DockIR, Observation, Odometry, Pose2, Twist2
+from homing.robot.turtlebot import BASE_RADIUS, NAV_MAX_V
+
+from homing.map_server import MapData
+from tests.navworld import (
+    MAZE,
+    MAZE_GOAL,
+    MAZE_START,
+    point_rect_distance,
+    rasterise,
+    scan_of,
+    unicycle,
+)
+
+DT = 0.1  # [s] tick
+SCAN_EVERY = 2  # ticks: ~5 Hz like the RPLIDAR
+RES = 0.05  # [m]
+
+
+def _obs(t: float, pose: Pose2, twist: Twist2, scan_pose: Pose2, scan_t: float, rects: np.ndarray) -> Observation:
+    return Observation(
+        stamp=t, odom=Odometry(t, pose, twist), scan=scan_of(scan_pose, rects, stamp=scan_t), image=None,
+        bumpers=Bumpers(), dock_ir=DockIR(), battery=BatteryState(16.0, 90.0),
+    )
+
+
+def _navigate(nav: Navigator, goal: Pose2, start: Pose2, seconds: float, rects: np.ndarray = MAZE,
+              map_rects: np.ndarray = MAZE, cancel_at: float = math.inf):  # type: ignore[no-untyped-def]
+    grid = MapData(rasterise(map_rects, (10.0, 10.0), RES), RES, (0.0, 0.0, 0.0))
+    nav.set_goal(goal)
+    pose, twist = start, Twist2()
+    scan_pose, scan_t = pose, 0.0
+    trail = [pose]
+    status = NavStatus.RUNNING
+    for k in range(int(seconds / DT)):
+        t = k * DT
+        if k % SCAN_EVERY == 0:
+            scan_pose, scan_t = pose, t
+        if t >= cancel_at:
+            nav.cancel()
+        # Odometry is exact and map = odom here: the scan is stale by up to one tick.
+        status, cmd, fb = nav.step(_obs(t, pose, twist, scan_pose, scan_t, rects), grid, pose, Pose2())
+        if status is not NavStatus.RUNNING:
+            break
+        assert cmd.v <= NAV_MAX_V + 1e-9
+        twist = cmd
+        pose = unicycle(pose, cmd.v, cmd.omega, DT)
+        trail.append(pose)
+    return status, trail, fb
+
+
+@pytest.mark.parametrize("planner", ["fmm", "astar"])
+def test_navigates_the_maze_without_touching(planner: str) -> None:
+    goal = Pose2(MAZE_GOAL[0], MAZE_GOAL[1], math.pi / 2)
+    status, trail, fb = _navigate(Navigator(planner=planner), goal, Pose2(*MAZE_START, 0.0), 120.0)
+    assert status is NavStatus.SUCCEEDED, fb.message
+    end = trail[-1]
+    assert math.hypot(end.x - goal.x, end.y - goal.y) <= 0.15 + 0.05
+    assert abs(math.remainder(end.theta - goal.theta, 2 * math.pi)) <= 0.25 + 0.15
+    xy = np.array([[p.x, p.y] for p in trail])
+    assert point_rect_distance(xy, MAZE).min() >= BASE_RADIUS
+    assert fb.replans >= 2  # it replanned on the way
+
+
+def test_goes_around_an_obstacle_the_map_does_not_have() -> None:
+    box = np.array([[4.6, 5.0, 5.4, 5.6]])  # in the corridor between walls 1 and 2, only in the scan
+    world = np.vstack([MAZE, box])
+    status, trail, fb = _navigate(Navigator(), Pose2(5.0, 8.0, 0.0), Pose2(5.0, 3.5, math.pi / 2), 90.0,
+                                  rects=world, map_rects=MAZE)
+    assert status is NavStatus.SUCCEEDED, fb.message
+    xy = np.array([[p.x, p.y] for p in trail])
+    assert point_rect_distance(xy, world).min() >= BASE_RADIUS
+
+
+def test_goal_in_a_wall_fails_with_goal_occupied() -> None:
+    status, _, fb = _navigate(Navigator(), Pose2(9.0, 2.05), Pose2(*MAZE_START), 10.0)
+    assert status is NavStatus.FAILED and isinstance(fb.error, GoalOccupied)
+
+
+def test_cancel_stops_at_once() -> None:
+    nav = Navigator()
+    status, trail, _ = _navigate(nav, Pose2(*MAZE_GOAL), Pose2(*MAZE_START), 10.0, cancel_at=2.0)
+    assert status is NavStatus.CANCELLED and len(trail) == int(2.0 / DT) + 1

@@ -1,0 +1,129 @@
+"""Global planners against exact geometry: a maze's true shortest path, collisions, typed failures, travel distance."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from homing.navigation.costmap import Costmap
+from homing.navigation.planner import (
+    PLANNERS,
+    GoalOccupied,
+    NoPathFound,
+    StartOccupied,
+    distance_map,
+    make_planner,
+    path_length,
+)
+from homing.robot import Pose2
+from homing.robot.turtlebot import BASE_RADIUS, FOOTPRINT_RADIUS
+
+from tests.navworld import (
+    MAZE,
+    MAZE_GOAL,
+    MAZE_START,
+    polyline_clearance,
+    rasterise,
+    shortest_path_length,
+)
+
+RES = 0.05  # [m]
+
+
+@pytest.fixture(scope="module")
+def maze() -> Costmap:
+    cm = Costmap()
+    cm.set_static(rasterise(MAZE, (10.0, 10.0), RES), RES, (0.0, 0.0))
+    return cm
+
+
+@pytest.fixture(scope="module")
+def optimum() -> tuple[float, float]:
+    return shortest_path_length(MAZE, MAZE_START, MAZE_GOAL, FOOTPRINT_RADIUS)
+
+
+def test_optimum_is_bracketed_tightly(optimum: tuple[float, float]) -> None:
+    lo, hi = optimum
+    # The maze forces a detour: far longer than the straight 8 m, and the bracket is tight.
+    assert lo > 15.0 and hi / lo < 1.006
+
+
+@pytest.mark.parametrize("name", sorted(PLANNERS))
+def test_maze_path_is_collision_free_and_near_optimal(name: str, maze: Costmap, optimum: tuple[float, float]) -> None:
+    path = make_planner(name).plan(maze, Pose2(*MAZE_START), Pose2(*MAZE_GOAL))
+    assert np.allclose(path[0], MAZE_START) and np.allclose(path[-1], MAZE_GOAL)
+    # The robot's body (not just its centre) clears every wall along the whole polyline.
+    assert polyline_clearance(path, MAZE) >= BASE_RADIUS
+    lo, hi = optimum
+    assert lo <= path_length(path) <= 1.05 * lo
+
+
+@pytest.mark.parametrize("name", sorted(PLANNERS))
+def test_typed_failures(name: str, maze: Costmap) -> None:
+    planner = make_planner(name)
+    with pytest.raises(StartOccupied):
+        planner.plan(maze, Pose2(2.05, 3.0), Pose2(*MAZE_GOAL))  # inside wall 1
+    with pytest.raises(StartOccupied):
+        planner.plan(maze, Pose2(-3.0, 1.0), Pose2(*MAZE_GOAL))  # off the map
+    with pytest.raises(GoalOccupied):
+        planner.plan(maze, Pose2(*MAZE_START), Pose2(9.0, 2.05))  # inside the last wall
+    with pytest.raises(GoalOccupied):
+        planner.plan(maze, Pose2(*MAZE_START), Pose2(9.0, 2.25))  # free, but the footprint touches the wall
+    sealed = Costmap()
+    g = rasterise(MAZE, (10.0, 10.0), RES)
+    g[:, 118:124] = 100  # a wall across the corridor between walls 1 and 2 (x ≈ 6 m) seals the goal off
+    sealed.set_static(g, RES, (0.0, 0.0))
+    with pytest.raises(NoPathFound):
+        planner.plan(sealed, Pose2(*MAZE_START), Pose2(*MAZE_GOAL))
+
+
+def test_goal_tolerance_moves_an_occupied_goal_to_the_nearest_free_cell(maze: Costmap) -> None:
+    path = make_planner("fmm", goal_tolerance=0.3).plan(maze, Pose2(*MAZE_START), Pose2(9.0, 2.25))
+    end = path[-1]
+    assert math.hypot(end[0] - 9.0, end[1] - 2.25) <= 0.3
+    assert maze.clearance[tuple(maze.world_to_cell(end)[0])] > maze.inscribed_radius
+
+
+def test_start_grazing_a_wall_can_still_plan_out(maze: Costmap) -> None:
+    start = Pose2(2.1 + 0.19, 3.0)  # footprint touches wall 1's right face
+    path = make_planner("dijkstra").plan(maze, start, Pose2(3.0, 3.0))
+    assert path_length(path) < 1.5
+
+
+def test_distance_map_is_euclidean_in_the_open_and_inf_where_unreachable() -> None:
+    cm = Costmap()
+    g = np.zeros((200, 200), dtype=np.int8)
+    g[:, 150:152] = 100  # a wall from bottom to top at x = 7.5 m seals the right part off
+    cm.set_static(g, RES, (0.0, 0.0))
+    d = distance_map(cm, (2.0, 3.0))
+    xy = cm.cell_to_world(np.argwhere(np.isfinite(d)))
+    truth = np.hypot(xy[:, 0] - 2.0, xy[:, 1] - 3.0)
+    got = d[np.isfinite(d)]
+    assert np.all(np.abs(got - truth) <= 0.02 * truth + 0.03)
+    assert np.all(np.isinf(d[:, 152:]))  # beyond the wall
+    assert np.all(np.isinf(d[cm.cost >= 253]))  # where the footprint does not fit
+
+
+def test_distance_map_in_the_maze_matches_the_optimum(maze: Costmap, optimum: tuple[float, float]) -> None:
+    d = distance_map(maze, Pose2(*MAZE_START))
+    rc = maze.world_to_cell(np.array(MAZE_GOAL))[0]
+    lo, hi = optimum
+    assert lo * 0.99 <= d[rc[0], rc[1]] <= hi * 1.03
+
+
+def test_unknown_space_is_crossed_only_when_allowed() -> None:
+    cm = Costmap()
+    g = np.zeros((100, 100), dtype=np.int8)
+    g[:, 40:60] = -1  # an unknown band splits the map
+    cm.set_static(g, RES, (0.0, 0.0))
+    assert len(make_planner("astar", allow_unknown=True).plan(cm, Pose2(1, 2.5), Pose2(4, 2.5))) >= 2
+    with pytest.raises(NoPathFound):
+        make_planner("astar", allow_unknown=False).plan(cm, Pose2(1, 2.5), Pose2(4, 2.5))
+    assert np.isinf(distance_map(cm, (1.0, 2.5))[50, 80])
+    assert np.isfinite(distance_map(cm, (1.0, 2.5), allow_unknown=True)[50, 80])
+
+
+def test_unknown_planner_name_lists_the_known_ones() -> None:
+    with pytest.raises(KeyError, match="dijkstra"):
+        make_planner("navfn")
