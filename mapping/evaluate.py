@@ -1,0 +1,102 @@
+"""Grid accuracy against a true map: cell agreement on observed cells, coverage of the reachable free area (evaluation code only).
+
+The robot's ``map`` frame is its ``odom`` frame at start, so comparing needs
+``world_from_map``: the true pose of the map frame in the true map's frame
+(the robot's true start pose, which only the simulator knows). Every cell of
+the grid is looked up in the truth at its centre's world position (nearest
+cell). Nothing here may run on the robot: it reads ground truth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from homing.mapping.grid import OccupancyGrid
+from homing.robot import Pose2
+
+from homing.map_server import FREE, UNKNOWN, MapData
+
+OCCUPIED_AT = 65  # map_server values ≥ this are walls
+
+
+def truth_under_grid(grid: OccupancyGrid, truth: MapData, world_from_map: Pose2 | None = None) -> np.ndarray:
+    """(H, W) int8: the true map's value under each grid cell's centre (UNKNOWN outside the truth)."""
+    world_from_map = world_from_map or Pose2()
+    h, w = grid.shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    x, y = grid.cell_to_world(rows.ravel(), cols.ravel())
+    pts = world_from_map.transform_points(np.column_stack([x, y]))
+    tc = np.floor((pts[:, 0] - truth.origin[0]) / truth.resolution).astype(np.int64)
+    tr = np.floor((pts[:, 1] - truth.origin[1]) / truth.resolution).astype(np.int64)
+    th, tw = truth.grid.shape
+    ok = (tr >= 0) & (tr < th) & (tc >= 0) & (tc < tw)
+    out = np.full(h * w, UNKNOWN, dtype=np.int8)
+    out[ok] = truth.grid[tr[ok], tc[ok]]
+    return out.reshape(h, w)
+
+
+def cell_agreement(grid: OccupancyGrid, truth: MapData, world_from_map: Pose2 | None = None, tolerance: int = 1) -> float:
+    """Fraction of observed grid cells (free or occupied, over known truth) whose class matches the truth.
+
+    An occupied cell agrees if the truth has a wall within ``tolerance``
+    grid cells (walls are one truth cell thick and a lidar end point lands on
+    their face); a free cell agrees if the truth is free there.
+    """
+    data = grid.data
+    t = truth_under_grid(grid, truth, world_from_map)
+    observed = (data != UNKNOWN) & (t != UNKNOWN)
+    if not observed.any():
+        return float("nan")
+    t_occ = (t >= OCCUPIED_AT).astype(np.uint8)
+    if tolerance > 0:
+        t_occ_near = cv2.dilate(t_occ, np.ones((2 * tolerance + 1,) * 2, np.uint8)).astype(bool)
+    else:
+        t_occ_near = t_occ.astype(bool)
+    agree_occ = (data >= OCCUPIED_AT) & t_occ_near
+    agree_free = (data == FREE) & (t == FREE)
+    return float((agree_occ | agree_free)[observed].mean())
+
+
+def reachable_free(truth: MapData, start_xy: tuple[float, float]) -> np.ndarray:
+    """(H, W) bool over the truth: free cells 8-connected to the free cell at ``start_xy`` [m, truth frame]."""
+    free = (truth.grid == FREE).astype(np.uint8)
+    _, labels = cv2.connectedComponents(free, connectivity=8)
+    c = int(np.floor((start_xy[0] - truth.origin[0]) / truth.resolution))
+    r = int(np.floor((start_xy[1] - truth.origin[1]) / truth.resolution))
+    lab = labels[r, c]
+    if lab == 0:  # started on a wall cell's edge: take the nearest free label
+        rr, cc = np.nonzero(labels)
+        i = int(np.argmin((rr - r) ** 2 + (cc - c) ** 2))
+        lab = labels[rr[i], cc[i]]
+    return labels == lab
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """Explored area [m²] (grid free cells), covered fraction of the truth's reachable free area, and agreement."""
+
+    area: float
+    coverage: float
+    agreement: float
+
+
+def coverage(grid: OccupancyGrid, truth: MapData, start_xy: tuple[float, float], world_from_map: Pose2 | None = None) -> Coverage:
+    """How much of the truth's free area reachable from ``start_xy`` the grid has seen as free.
+
+    Computed on the truth's cells: a truth cell counts as covered if the grid
+    cell under its centre is FREE.
+    """
+    world_from_map = world_from_map or Pose2()
+    reach = reachable_free(truth, start_xy)
+    rows, cols = np.nonzero(reach)
+    x = truth.origin[0] + (cols + 0.5) * truth.resolution
+    y = truth.origin[1] + (rows + 0.5) * truth.resolution
+    pts = world_from_map.inverse().transform_points(np.column_stack([x, y]))
+    gr, gc = grid.world_to_cell(pts[:, 0], pts[:, 1])
+    ok = grid.in_bounds(gr, gc)
+    seen = np.zeros(len(rows), dtype=bool)
+    seen[ok] = grid.data[gr[ok], gc[ok]] == FREE
+    area = float((grid.data == FREE).sum()) * grid.resolution**2
+    return Coverage(area, float(seen.mean()) if len(seen) else float("nan"), cell_agreement(grid, truth, world_from_map))

@@ -1,0 +1,227 @@
+"""Log-odds occupancy grid with vectorised ray tracing (Moravec & Elfes 1985; Thrun et al., Probabilistic Robotics ch. 9).
+
+Each cell holds the log-odds of being occupied. A scan taken from a known
+pose lowers the log-odds of every cell its rays cross and raises it at each
+ray's end point; a cell is updated at most once per scan (so a cell near the
+robot is not cleared 50 times by one sweep). Rays are traced all at once by
+sampling every ray at half-cell steps — a (rays × samples) array, no Python
+loop over cells or rays.
+
+The grid either grows (its extent doubles in chunks when a scan reaches past
+an edge, like gmapping's growing map) or keeps a fixed extent and drops what
+falls outside. :meth:`OccupancyGrid.data` is the map_server / ROS
+``OccupancyGrid`` view: (H, W) int8, ``FREE`` 0, ``OCCUPIED`` 100,
+``UNKNOWN`` −1, row 0 at the lowest y, origin at the lower-left corner of
+cell (0, 0), no rotation.
+
+Do not use this for 3-D or for sonar-like wide beams: the inverse sensor model
+here is a thin ray.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from homing.robot import Pose2, Scan
+
+from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData
+
+L_OCC = 0.85  # log-odds added at a ray's end point (p ≈ 0.70)
+L_FREE = -0.40  # log-odds added to a cell a ray passes through (p ≈ 0.40)
+L_MIN = -4.0  # clamp, so a cell can still change its mind (p ≈ 0.018)
+L_MAX = 4.0  # clamp (p ≈ 0.982)
+T_OCC = 0.40  # log-odds above which a cell reads OCCUPIED
+T_FREE = -0.20  # log-odds below which a cell reads FREE
+GROW_CHUNK = 4.0  # [m] margin added on each side that needs to grow
+NO_RETURN_NEIGHBOURS = 2  # rays each side whose returns bound how far a no-return ray clears
+
+
+class OccupancyGrid:
+    """A 2-D log-odds occupancy grid in the ``map`` frame.
+
+    ``resolution`` [m/cell]; ``origin`` (x, y) [m] of the lower-left corner
+    of cell (row 0, col 0); ``shape`` (H, W) cells. ``grow=True`` enlarges the
+    grid when a scan reaches past its edge (the origin moves; world
+    coordinates of what is already mapped never change); ``grow=False``
+    ignores what falls outside.
+    """
+
+    def __init__(
+        self,
+        resolution: float = 0.05,
+        origin: tuple[float, float] = (-5.0, -5.0),
+        shape: tuple[int, int] = (200, 200),
+        grow: bool = True,
+    ) -> None:
+        if resolution <= 0:
+            raise ValueError("resolution must be positive")
+        self.resolution = float(resolution)
+        self.origin = (float(origin[0]), float(origin[1]))
+        self.grow = grow
+        self.logodds = np.zeros(shape, dtype=np.float32)
+        self.version = 0  # bumped on every change, so readers can cache derived arrays
+        self._data: np.ndarray | None = None
+
+    # ------------------------------------------------------------------ views
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (int(self.logodds.shape[0]), int(self.logodds.shape[1]))
+
+    @property
+    def data(self) -> np.ndarray:
+        """(H, W) int8 map_server view: FREE 0, OCCUPIED 100, UNKNOWN −1 (cached until the next update)."""
+        if self._data is None:
+            out = np.full(self.logodds.shape, UNKNOWN, dtype=np.int8)
+            out[self.logodds > T_OCC] = OCCUPIED
+            out[self.logodds < T_FREE] = FREE
+            self._data = out
+        return self._data
+
+    def probability(self) -> np.ndarray:
+        """(H, W) float32 occupancy probability (0.5 where never observed)."""
+        return (1.0 / (1.0 + np.exp(-self.logodds))).astype(np.float32)
+
+    def to_map_data(self) -> MapData:
+        """The map_server view with its resolution and origin, for :mod:`homing.map_server`."""
+        return MapData(self.data.copy(), self.resolution, (self.origin[0], self.origin[1], 0.0))
+
+    @classmethod
+    def from_map_data(cls, m: MapData, grow: bool = True) -> OccupancyGrid:
+        """A grid whose cells read as ``m`` does (log-odds set to the clamps); ``m``'s yaw must be 0."""
+        if abs(m.origin[2]) > 1e-9:
+            raise ValueError("rotated map origins are not supported")
+        g = cls(m.resolution, (m.origin[0], m.origin[1]), m.grid.shape, grow)
+        g.logodds[m.grid == FREE] = L_MIN
+        g.logodds[m.grid >= 65] = L_MAX
+        g._touch()
+        return g
+
+    def copy(self) -> OccupancyGrid:
+        g = OccupancyGrid(self.resolution, self.origin, self.shape, self.grow)
+        g.logodds[:] = self.logodds
+        g.version = self.version
+        return g
+
+    # ------------------------------------------------------- coordinates
+    def world_to_cell(self, x: np.ndarray | float, y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        """(row, col) int64 arrays of the cells holding world points (x, y) [m, map]; may be out of bounds."""
+        col = np.floor((np.asarray(x, dtype=float) - self.origin[0]) / self.resolution).astype(np.int64)
+        row = np.floor((np.asarray(y, dtype=float) - self.origin[1]) / self.resolution).astype(np.int64)
+        return row, col
+
+    def cell_to_world(self, row: np.ndarray | float, col: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        """(x, y) [m, map] of cell centres; rows/cols may be fractional."""
+        x = self.origin[0] + (np.asarray(col, dtype=float) + 0.5) * self.resolution
+        y = self.origin[1] + (np.asarray(row, dtype=float) + 0.5) * self.resolution
+        return x, y
+
+    def in_bounds(self, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+        h, w = self.shape
+        return (row >= 0) & (row < h) & (col >= 0) & (col < w)
+
+    def value_at(self, x: float, y: float) -> int:
+        """The map_server value (FREE/OCCUPIED/UNKNOWN) at a world point; UNKNOWN outside the grid."""
+        r, c = self.world_to_cell(x, y)
+        if not self.in_bounds(r, c):
+            return UNKNOWN
+        return int(self.data[int(r), int(c)])
+
+    # ------------------------------------------------------------ extent
+    def ensure_contains(self, xmin: float, ymin: float, xmax: float, ymax: float) -> None:
+        """Grow the grid (by at least ``GROW_CHUNK`` on each side that needs it) to hold the box [m]."""
+        h, w = self.shape
+        res = self.resolution
+        ox, oy = self.origin
+        pad_l = math.ceil((ox - xmin) / res) if xmin < ox else 0
+        pad_b = math.ceil((oy - ymin) / res) if ymin < oy else 0
+        pad_r = math.ceil((xmax - (ox + w * res)) / res) + 1 if xmax >= ox + w * res else 0
+        pad_t = math.ceil((ymax - (oy + h * res)) / res) + 1 if ymax >= oy + h * res else 0
+        if not (pad_l or pad_b or pad_r or pad_t):
+            return
+        chunk = int(round(GROW_CHUNK / res))
+        pad_l, pad_b, pad_r, pad_t = (p + chunk if p else 0 for p in (pad_l, pad_b, pad_r, pad_t))
+        self.logodds = np.pad(self.logodds, ((pad_b, pad_t), (pad_l, pad_r)))
+        self.origin = (ox - pad_l * res, oy - pad_b * res)
+        self._touch()
+
+    # ------------------------------------------------------------ update
+    def integrate(self, scan: Scan, pose: Pose2) -> None:
+        """Fuse one scan taken with ``base_link`` at ``pose`` (map frame) into the grid.
+
+        Rays with a return mark their end cell occupied and the cells before
+        it free. A ray with no return (``inf``) clears up to the nearest
+        return of its neighbours (or ``range_max`` if they have none either):
+        an isolated dropout pointing at a wall must not clear the wall.
+        """
+        sensor = pose.compose(scan.laser_pose)
+        ranges = np.asarray(scan.ranges, dtype=float)
+        hit = scan.valid()
+        clear = _clear_lengths(ranges, hit, scan.range_max)
+        angles = scan.angles + sensor.theta
+        self.integrate_rays(np.array([sensor.x, sensor.y]), angles, clear, hit)
+
+    def integrate_rays(self, origin: np.ndarray, angles: np.ndarray, lengths: np.ndarray, hit: np.ndarray) -> None:
+        """Trace (N,) rays from ``origin`` (2,) [m, map] at ``angles`` [rad, map] of ``lengths`` [m].
+
+        ``hit`` (N,) bool says which rays end on an obstacle (their end cell
+        is marked occupied); the others only clear.
+        """
+        ox, oy = float(origin[0]), float(origin[1])
+        ends_x = ox + lengths * np.cos(angles)
+        ends_y = oy + lengths * np.sin(angles)
+        if self.grow and len(lengths):
+            self.ensure_contains(
+                min(ox, float(ends_x.min())), min(oy, float(ends_y.min())),
+                max(ox, float(ends_x.max())), max(oy, float(ends_y.max())),
+            )
+        h, w = self.shape
+        res = self.resolution
+        step = 0.5 * res
+        n_steps = int(math.ceil(float(lengths.max(initial=0.0)) / step)) + 1
+        t = np.arange(n_steps, dtype=float) * step  # (K,)
+        # Free samples stop half a cell short of the end so the end cell is not cleared by its own ray.
+        valid = t[None, :] < (lengths[:, None] - np.where(hit, step, 0.0)[:, None])
+        xs = ox + np.cos(angles)[:, None] * t[None, :]
+        ys = oy + np.sin(angles)[:, None] * t[None, :]
+        r, c = self.world_to_cell(xs[valid], ys[valid])
+        inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        free_idx = r[inside] * w + c[inside]
+        hr, hc = self.world_to_cell(ends_x[hit], ends_y[hit])
+        inside = (hr >= 0) & (hr < h) & (hc >= 0) & (hc < w)
+        hit_idx = hr[inside] * w + hc[inside]
+        flat = self.logodds.reshape(-1)
+        if hit_idx.size:
+            # End points win over rays grazing past them in the same scan.
+            is_hit = np.zeros(flat.size, dtype=bool)
+            is_hit[hit_idx] = True
+            free_idx = free_idx[~is_hit[free_idx]]
+        # Fancy-index += applies once per distinct index: each cell is updated once per scan.
+        flat[free_idx] += L_FREE
+        flat[hit_idx] += L_OCC
+        np.clip(flat, L_MIN, L_MAX, out=flat)
+        self._touch()
+
+    def clear(self) -> None:
+        """Forget everything (all cells unknown)."""
+        self.logodds[:] = 0.0
+        self._touch()
+
+    def _touch(self) -> None:
+        self._data = None
+        self.version += 1
+
+
+def _clear_lengths(ranges: np.ndarray, hit: np.ndarray, range_max: float) -> np.ndarray:
+    """(N,) how far each ray clears [m]: its range if it returned, else bounded by its neighbours' returns."""
+    out = np.where(hit, ranges, np.inf)
+    n = len(ranges)
+    if n == 0:
+        return out
+    neighbour_min = np.full(n, np.inf)
+    for k in range(1, NO_RETURN_NEIGHBOURS + 1):
+        neighbour_min = np.minimum(neighbour_min, np.roll(out, k))
+        neighbour_min = np.minimum(neighbour_min, np.roll(out, -k))
+    # A no-return ray among returns clears to just short of the nearest neighbouring return.
+    bounded = np.where(np.isfinite(neighbour_min), 0.9 * neighbour_min, range_max)
+    return np.where(hit, ranges, np.minimum(bounded, range_max))

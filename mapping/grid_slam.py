@@ -1,0 +1,121 @@
+"""Online grid SLAM: scan-to-map matching corrects odometry, the corrected pose builds a log-odds grid (as gmapping's best particle, or Hector SLAM).
+
+Each new scan is placed with the odometry pose *at the scan's stamp*
+(interpolated from a short odometry history, because the observation's
+odometry is newer than its latest scan), predicted into ``map`` through the
+current ``map → odom`` correction, matched against the grid built so far
+(:mod:`homing.mapping.scan_match`), and fused into the grid at the matched
+pose. ``map → odom`` then absorbs the correction, so between scans the pose in
+``map`` is ``map_to_odom ⊕ odom``.
+
+Frames: ``map`` is the ``odom`` frame at the first scan (identity
+``map_to_odom`` until the first correction). Do not use this when a tag
+landmark SLAM is running and rebuilding the grid: that one owns the grid
+(ARCHITECTURE.md, ``/map/grid``).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+
+import numpy as np
+from homing.mapping.grid import OccupancyGrid
+from homing.mapping.scan_match import CorrelativeMatcher, ScanMatcher
+from homing.robot import Odometry, Pose2, Scan
+from homing.robot.frames import wrap_angle
+
+HISTORY = 2.0  # [s] of odometry kept to look up the pose at a scan's stamp
+MIN_MATCH_TRAVEL = 0.0  # [m] match every scan (cheap); raise to skip matching when standing still
+MAX_CORRECTION_XY = 0.30  # [m] a larger jump between consecutive scans is rejected as a false match
+MAX_CORRECTION_THETA = math.radians(10.0)  # [rad]
+WARMUP_SCANS = 3
+MATCH_RANGE_MARGIN = 1.0  # [m] end points this close to the sensor's reach are not matched (scan_match)  # scans fused at the odometry pose before matching starts
+
+
+class GridSlam:
+    """Grid SLAM over a stream of odometry and scans (see module doc).
+
+    ``update(odom, scan)`` once per observation; read ``pose`` (base_link in
+    ``map``), ``map_to_odom`` and ``grid``. ``matcher=None`` gives the
+    odometry-only baseline (the grid is built from raw odometry).
+    """
+
+    def __init__(
+        self,
+        resolution: float = 0.05,
+        matcher: ScanMatcher | None = None,
+        use_matcher: bool = True,
+        grid: OccupancyGrid | None = None,
+    ) -> None:
+        self.grid = grid if grid is not None else OccupancyGrid(resolution)
+        self.matcher: ScanMatcher | None = (matcher or CorrelativeMatcher()) if use_matcher else None
+        self.map_to_odom = Pose2()
+        self.pose = Pose2()
+        self.scans_fused = 0
+        self.matches_rejected = 0
+        self.last_score = float("nan")
+        self._last_scan_stamp = -math.inf
+        self._odom: deque[tuple[float, Pose2]] = deque()
+
+    # ----------------------------------------------------------------- inputs
+    def update(self, odom: Odometry, scan: Scan | None) -> bool:
+        """Feed one observation's odometry and latest scan; returns True if a new scan was fused."""
+        self._remember(odom)
+        fused = False
+        if scan is not None and scan.stamp > self._last_scan_stamp:
+            self._last_scan_stamp = scan.stamp
+            self._fuse(scan, self._odom_at(scan.stamp))
+            fused = True
+        self.pose = self.map_to_odom.compose(odom.pose)
+        return fused
+
+    def _remember(self, odom: Odometry) -> None:
+        if self._odom and odom.stamp <= self._odom[-1][0]:
+            if odom.stamp == self._odom[-1][0]:
+                return
+            self._odom.clear()  # time went backwards: a new run
+        self._odom.append((odom.stamp, odom.pose))
+        while len(self._odom) > 2 and self._odom[0][0] < odom.stamp - HISTORY:
+            self._odom.popleft()
+
+    def _odom_at(self, stamp: float) -> Pose2:
+        """Odometry pose at ``stamp`` [s], linearly interpolated; clamped to the history's ends."""
+        stamps = [s for s, _ in self._odom]
+        i = bisect.bisect_left(stamps, stamp)
+        if i <= 0:
+            return self._odom[0][1]
+        if i >= len(stamps):
+            return self._odom[-1][1]
+        (s0, p0), (s1, p1) = self._odom[i - 1], self._odom[i]
+        a = (stamp - s0) / (s1 - s0) if s1 > s0 else 1.0
+        d = p0.between(p1)
+        return p0.compose(Pose2(a * d.x, a * d.y, a * d.theta))
+
+    # ------------------------------------------------------------------ core
+    def _fuse(self, scan: Scan, odom_pose: Pose2) -> None:
+        predicted = self.map_to_odom.compose(odom_pose)
+        corrected = predicted
+        if self.matcher is not None and self.scans_fused >= WARMUP_SCANS:
+            points = scan.points()
+            max_range = scan.range_max - MATCH_RANGE_MARGIN
+            result = self.matcher.match(self.grid, points, predicted, max_range)
+            self.last_score = result.score
+            jump = predicted.between(result.pose)
+            plausible = (
+                math.hypot(jump.x, jump.y) <= MAX_CORRECTION_XY
+                and abs(wrap_angle(jump.theta)) <= MAX_CORRECTION_THETA
+            )
+            if result.ok and plausible:
+                corrected = result.pose
+            else:
+                self.matches_rejected += 1
+        self.map_to_odom = corrected.compose(odom_pose.inverse())
+        self.grid.integrate(scan, corrected)
+        self.scans_fused += 1
+
+    # ------------------------------------------------------------ utilities
+    def trajectory_point(self) -> np.ndarray:
+        """The current pose as a (3,) array [m, m, rad] in ``map``."""
+        return self.pose.as_array()

@@ -1,0 +1,289 @@
+"""Scan-to-map matching: multi-resolution correlative search (Olson, ICRA 2009) refined by Gauss–Newton on a likelihood field (Kohlbrecher et al., Hector SLAM, 2011).
+
+The map is turned into a likelihood field — each cell scores
+``exp(−d²/2σ²)`` for its distance ``d`` to the nearest occupied cell — and a
+scan's end points are scored by summing the field under them. The search:
+
+1. correlative, coarse to fine: at the top level the field is max-pooled by
+   2^L (so a coarse score bounds every finer pose under it) and every pose
+   of a window around the odometry prior is scored at once as one
+   (angles × offsets × points) gather; each finer level searches ±1 step
+   around the best pose of the level above;
+2. optionally (``refine=True``) Gauss–Newton on the bilinearly interpolated
+   fine field from the best correlative pose, anchored to it. It is off by
+   default: on a drifting loop it slid the pose along corridors more than
+   it gained in sub-cell accuracy (the finest correlative step is one cell
+   and 0.5°). A small penalty for leaving the odometry prior breaks the ties
+   a featureless corridor produces.
+
+The result is accepted only if enough of the scan lands on known walls
+(``min_score``); otherwise the caller should keep odometry. Matching is done
+on a crop of the grid around the prior (sensor range plus window), so its cost
+does not grow with the map.
+
+Do not use this for global relocalisation: the window is local (tens of cm,
+a few degrees), as between consecutive scans.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import cv2
+import numpy as np
+from homing.mapping.grid import OccupancyGrid
+from homing.robot import Pose2
+
+from homing.map_server import OCCUPIED, UNKNOWN
+
+SIGMA = 0.10  # [m] likelihood-field spread
+WINDOW_XY = 0.20  # [m] half-width of the translational search window
+WINDOW_THETA = math.radians(8.0)  # [rad] half-width of the angular search window
+ANGLE_STEP = math.radians(0.5)  # [rad] at the finest correlative level
+LEVELS = 2  # coarse levels above the finest (each halves the resolution)
+MAX_POINTS = 180  # scan end points used by the correlative search (decimated)
+GN_ITERATIONS = 8
+PRIOR_XY = 0.10  # [m] std-dev of the odometry prior in the correlative score
+PRIOR_THETA = math.radians(3.0)  # [rad] same, for heading
+PRIOR_PENALTY = 0.01  # weight of the prior in the correlative score, per point
+GN_ANCHOR_XY = 0.05  # [m] std-dev of the pull towards the correlative optimum in Gauss–Newton
+GN_ANCHOR_THETA = math.radians(2.0)  # [rad]
+MIN_SCORE = 0.25  # mean field value the best pose must reach to be trusted
+MIN_POINTS = 30  # fewer scan end points than this: no match
+
+
+@dataclass(frozen=True)
+class MatchResult:
+    """The matched pose of ``base_link`` in ``map``, its mean field score in [0, 1], and whether to trust it."""
+
+    pose: Pose2
+    score: float
+    ok: bool
+
+
+class ScanMatcher(Protocol):
+    """Finds the pose of a scan in a map, near a prior."""
+
+    def match(self, grid: OccupancyGrid, points: np.ndarray, prior: Pose2, max_range: float = 5.0) -> MatchResult:
+        """``points`` (M, 2) scan end points in ``base_link`` [m]; ``prior`` the predicted pose in ``map``;
+        points beyond ``max_range`` [m] ignored."""
+        ...
+
+
+@dataclass
+class _Field:
+    """A likelihood field over a crop of the grid: (H, W) float32 values and its lower-left corner [m]."""
+
+    values: np.ndarray
+    origin: tuple[float, float]
+    resolution: float
+    known: np.ndarray | None = None  # (H, W) bool: the grid has observed the cell
+
+
+def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: float, sigma: float = SIGMA) -> _Field:
+    """The likelihood field of ``grid`` on the square crop of half-size ``half`` [m] around ``centre``."""
+    res = grid.resolution
+    r0, c0 = grid.world_to_cell(centre[0] - half, centre[1] - half)
+    r1, c1 = grid.world_to_cell(centre[0] + half, centre[1] + half)
+    h, w = grid.shape
+    r0, c0 = max(int(r0), 0), max(int(c0), 0)
+    r1, c1 = min(int(r1) + 1, h), min(int(c1) + 1, w)
+    if r1 <= r0 or c1 <= c0:
+        return _Field(np.zeros((1, 1), np.float32), grid.origin, res)
+    occ = grid.data[r0:r1, c0:c1] == OCCUPIED
+    # distanceTransform measures to the nearest zero pixel: zeros at walls.
+    dist = cv2.distanceTransform((~occ).astype(np.uint8), cv2.DIST_L2, 5) * res
+    values = np.exp(-0.5 * (np.minimum(dist, 10 * sigma) / sigma) ** 2).astype(np.float32)
+    origin = (grid.origin[0] + c0 * res, grid.origin[1] + r0 * res)
+    known = grid.data[r0:r1, c0:c1] != UNKNOWN
+    return _Field(values, origin, res, known)
+
+
+def _pool(values: np.ndarray, factor: int) -> np.ndarray:
+    """Max-pool (H, W) by ``factor`` (padding with zeros): a coarse cell bounds every fine cell in it."""
+    h, w = values.shape
+    H, W = -(-h // factor), -(-w // factor)
+    padded = np.zeros((H * factor, W * factor), dtype=values.dtype)
+    padded[:h, :w] = values
+    return padded.reshape(H, factor, W, factor).max(axis=(1, 3))
+
+
+class CorrelativeMatcher:
+    """Multi-resolution correlative scan matcher with Gauss–Newton refinement (see module doc)."""
+
+    def __init__(
+        self,
+        window_xy: float = WINDOW_XY,
+        window_theta: float = WINDOW_THETA,
+        levels: int = LEVELS,
+        sigma: float = SIGMA,
+        min_score: float = MIN_SCORE,
+        refine: bool = False,
+    ) -> None:
+        self.window_xy = window_xy
+        self.window_theta = window_theta
+        self.levels = levels
+        self.sigma = sigma
+        self.min_score = min_score
+        self.refine = refine
+
+    def match(self, grid: OccupancyGrid, points: np.ndarray, prior: Pose2, max_range: float = 5.0) -> MatchResult:
+        """Best pose of the scan ``points`` (M, 2) [m, base_link] in ``grid`` near ``prior`` [map].
+
+        Points farther than ``max_range`` [m] are not used: set it a metre
+        or so under the sensor's range (see the comment in the code).
+        """
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        # End points near the edge of the sensor's reach land where earlier scans did not reach:
+        # they would pull the pose backwards onto walls already mapped.
+        pts = pts[np.hypot(pts[:, 0], pts[:, 1]) <= max_range]
+        if len(pts) < MIN_POINTS:
+            return MatchResult(prior, 0.0, False)
+        reach = min(float(np.max(np.hypot(pts[:, 0], pts[:, 1]))), max_range)
+        field = likelihood_field(grid, (prior.x, prior.y), reach + self.window_xy + 4 * self.sigma, self.sigma)
+        sub = pts[:: max(1, len(pts) // MAX_POINTS)]
+        best = self._correlative(field, sub, prior)
+        if self.refine:
+            best = self._gauss_newton(field, pts, best, prior)
+        score = float(_score(field, pts, best))
+        return MatchResult(best, score, score >= self.min_score)
+
+    # ------------------------------------------------------------ correlative
+    def _correlative(self, field: _Field, pts: np.ndarray, prior: Pose2) -> Pose2:
+        res = field.resolution
+        levels = [(_pool(field.values, 2**k), res * 2**k) for k in range(self.levels + 1)]
+        # Top level: the whole window.
+        top_vals, top_res = levels[-1]
+        n_xy = max(1, int(math.ceil(self.window_xy / top_res)))
+        a_step = ANGLE_STEP * 2**self.levels
+        n_a = max(1, int(math.ceil(self.window_theta / a_step)))
+        offs = np.arange(-n_xy, n_xy + 1) * top_res
+        thetas = prior.theta + np.arange(-n_a, n_a + 1) * a_step
+        x, y, th = _search(top_vals, top_res, field.origin, pts, prior.x + offs, prior.y + offs, thetas, prior)
+        # Finer levels: ±1 step around the best of the coarser level.
+        for k in range(self.levels - 1, -1, -1):
+            vals, lres = levels[k]
+            a_step = ANGLE_STEP * 2**k
+            step = np.array([-1.0, 0.0, 1.0])
+            x, y, th = _search(
+                vals, lres, field.origin, pts, x + step * lres, y + step * lres, th + step * a_step, prior
+            )
+        return Pose2(x, y, th)
+
+    # ----------------------------------------------------------- Gauss–Newton
+    def _gauss_newton(self, field: _Field, pts: np.ndarray, start: Pose2, prior: Pose2) -> Pose2:
+        xi = start.as_array().astype(float)
+        # Anchor at the correlative optimum (itself tied to odometry where the scan is ambiguous): the
+        # refinement is for sub-cell accuracy and must not slide along a corridor.
+        p0 = start.as_array()
+        w_prior = np.array([1 / GN_ANCHOR_XY**2, 1 / GN_ANCHOR_XY**2, 1 / GN_ANCHOR_THETA**2])
+        for _ in range(GN_ITERATIONS):
+            c, s = math.cos(xi[2]), math.sin(xi[2])
+            wx = xi[0] + c * pts[:, 0] - s * pts[:, 1]
+            wy = xi[1] + s * pts[:, 0] + c * pts[:, 1]
+            m, gx, gy = _bilinear(field, wx, wy)
+            # d(world point)/d(theta) = (−s·px − c·py, c·px − s·py)
+            dth = gx * (-s * pts[:, 0] - c * pts[:, 1]) + gy * (c * pts[:, 0] - s * pts[:, 1])
+            # Points on cells never observed carry no evidence, only a pull towards mapped walls.
+            k = _known(field, wx, wy)
+            J = np.column_stack([gx, gy, dth]) * k[:, None]  # (M, 3) gradient of M w.r.t. the pose
+            r = (1.0 - m) * k
+            H = J.T @ J + np.diag(w_prior * len(pts))
+            d = p0 - xi
+            d[2] = math.atan2(math.sin(d[2]), math.cos(d[2]))
+            g = J.T @ r + w_prior * len(pts) * d
+            try:
+                delta = np.linalg.solve(H, g)
+            except np.linalg.LinAlgError:
+                break
+            # Never step further than a cell or a degree at a time: the field is only locally smooth.
+            delta[:2] = np.clip(delta[:2], -field.resolution, field.resolution)
+            delta[2] = float(np.clip(delta[2], -ANGLE_STEP, ANGLE_STEP))
+            xi = xi + delta
+            if abs(delta[0]) + abs(delta[1]) < 1e-4 and abs(delta[2]) < 1e-4:
+                break
+        out = Pose2.from_array(xi)
+        # Keep the refinement only if it does not make the fit worse.
+        return out if _score(field, pts, out) >= _score(field, pts, start) else start
+
+
+def _search(
+    values: np.ndarray,
+    res: float,
+    origin: tuple[float, float],
+    pts: np.ndarray,
+    xs: np.ndarray,
+    ys: np.ndarray,
+    thetas: np.ndarray,
+    prior: Pose2,
+) -> tuple[float, float, float]:
+    """Score every pose of the grid xs × ys × thetas at once; return the best (x, y, θ).
+
+    A small penalty for straying from ``prior`` breaks ties (a featureless
+    corridor scores the same all along it) in favour of odometry.
+    """
+    c, s = np.cos(thetas), np.sin(thetas)
+    # Rotated points (T, M), then shifted by every (x, y) offset: cells (T, X, Y, M).
+    rx = c[:, None] * pts[None, :, 0] - s[:, None] * pts[None, :, 1]
+    ry = s[:, None] * pts[None, :, 0] + c[:, None] * pts[None, :, 1]
+    cols = np.floor((rx[:, None, None, :] + xs[None, :, None, None] - origin[0]) / res).astype(np.int64)
+    rows = np.floor((ry[:, None, None, :] + ys[None, None, :, None] - origin[1]) / res).astype(np.int64)
+    h, w = values.shape
+    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    vals = np.where(inside, values[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)], 0.0)
+    dth = np.arctan2(np.sin(thetas - prior.theta), np.cos(thetas - prior.theta))
+    penalty = PRIOR_PENALTY * len(pts) * (
+        ((xs[None, :, None] - prior.x) ** 2 + (ys[None, None, :] - prior.y) ** 2) / PRIOR_XY**2
+        + (dth[:, None, None] / PRIOR_THETA) ** 2
+    )
+    scores = vals.sum(axis=-1) - penalty  # (T, X, Y)
+    t, i, j = np.unravel_index(int(np.argmax(scores)), scores.shape)
+    return float(xs[i]), float(ys[j]), float(thetas[t])
+
+
+def _bilinear(field: _Field, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Field value and its gradient (per metre) at world points, bilinearly interpolated between cell centres."""
+    res = field.resolution
+    fx = (x - field.origin[0]) / res - 0.5
+    fy = (y - field.origin[1]) / res - 0.5
+    x0 = np.floor(fx).astype(np.int64)
+    y0 = np.floor(fy).astype(np.int64)
+    ax, ay = fx - x0, fy - y0
+    h, w = field.values.shape
+    ok = (x0 >= 0) & (x0 < w - 1) & (y0 >= 0) & (y0 < h - 1)
+    x0c, y0c = np.clip(x0, 0, max(w - 2, 0)), np.clip(y0, 0, max(h - 2, 0))
+    v = field.values
+    if h < 2 or w < 2:
+        z = np.zeros_like(x)
+        return z, z, z
+    v00, v01 = v[y0c, x0c], v[y0c, x0c + 1]
+    v10, v11 = v[y0c + 1, x0c], v[y0c + 1, x0c + 1]
+    m = (1 - ay) * ((1 - ax) * v00 + ax * v01) + ay * ((1 - ax) * v10 + ax * v11)
+    gx = ((1 - ay) * (v01 - v00) + ay * (v11 - v10)) / res
+    gy = ((1 - ax) * (v10 - v00) + ax * (v11 - v01)) / res
+    return np.where(ok, m, 0.0), np.where(ok, gx, 0.0), np.where(ok, gy, 0.0)
+
+
+def _known(field: _Field, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(M,) float 1.0 where the world point lies on an observed cell of the crop, else 0.0."""
+    if field.known is None:
+        return np.ones_like(x)
+    col = np.floor((x - field.origin[0]) / field.resolution).astype(np.int64)
+    row = np.floor((y - field.origin[1]) / field.resolution).astype(np.int64)
+    h, w = field.known.shape
+    ok = (row >= 0) & (row < h) & (col >= 0) & (col < w)
+    out = np.zeros(len(x))
+    out[ok] = field.known[row[ok], col[ok]]
+    return out
+
+
+def _score(field: _Field, pts: np.ndarray, pose: Pose2) -> float:
+    """Mean interpolated field value under the scan placed at ``pose``."""
+    wpts = pose.transform_points(pts)
+    m, _, _ = _bilinear(field, wpts[:, 0], wpts[:, 1])
+    return float(m.mean()) if len(m) else 0.0
+
+
+MATCHERS: dict[str, type[CorrelativeMatcher]] = {"correlative": CorrelativeMatcher}

@@ -1,0 +1,299 @@
+"""Frontier goal strategies chosen by name: the thesis's four (Mata 2017, §2.4.2, table 5.1), explore_lite's cost (Hörner 2016), and information gain per travel time (the default).
+
+Every strategy sees the same :class:`GoalContext`: the map_server grid, the
+robot's cell and heading, the travel-distance field from the robot on the
+costmap (``distance`` (H, W) [m], ``inf`` where the planner cannot reach —
+navigation's ``distance_map``), cells excluded as goals (blacklisted, or
+within the reach radius of the robot), the current goal and a seeded
+generator. A strategy returns a :class:`GoalChoice` (a reachable cell) or
+``None`` when no frontier is left. Blacklisting, progress timeouts and when to
+choose again live in :mod:`homing.mapping.explorer`, shared by all.
+
+- ``nearest`` — Yamauchi (1997): the segment whose closest reachable cell is
+  nearest by travel distance; goal = that cell.
+- ``largest_closest`` — the largest segment; goal = its nearest cell.
+- ``largest_random`` — the largest segment; goal = a uniformly random
+  reachable cell of it (the thesis's best).
+- ``largest_random_raw`` — the same on the raw, unsmoothed frontier.
+- ``explore_lite`` — explore_lite's frontier search and cost:
+  ``potential_scale·min_distance·resolution − gain_scale·size·resolution``
+  (its defaults 3.0 / 1.0; ``min_distance`` the straight-line distance in
+  metres to the nearest frontier cell, multiplied by the resolution as its
+  source does), frontiers of unknown cells 4-adjacent to free, 8-connected,
+  ``min_frontier_size`` 0.75 m, goal = centroid. move_base's global planner
+  then plans to the centroid; here the centroid is snapped to the nearest
+  reachable cell within ``CENTROID_TOLERANCE`` (else the frontier is skipped,
+  as move_base would abort it and explore_lite blacklist it).
+- ``gain_rate`` (default) — for every reachable goal cell of every smoothed
+  segment: unknown area within sensor reach of the cell (information gain,
+  m²) divided by the travel time there (path length / speed + turning time
+  + a fixed overhead). Keeps its current goal unless another scores
+  ``HYSTERESIS`` times better, so it does not oscillate between two goals.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import cv2
+import numpy as np
+from homing.mapping.frontier import (
+    FrontierSegment,
+    keep_reachable,
+    raw_frontiers,
+    smoothed_frontiers,
+)
+from homing.robot.turtlebot import FOOTPRINT_RADIUS, NAV_MAX_V
+
+from homing.map_server import FREE, UNKNOWN
+
+POTENTIAL_SCALE = 3.0  # explore_lite launch default
+GAIN_SCALE = 1.0  # explore_lite launch default
+MIN_FRONTIER_SIZE = 0.75  # [m] explore_lite launch default
+CENTROID_TOLERANCE = 1.0  # [m] how far a centroid goal may be moved to a reachable cell
+GAIN_RADIUS = 3.0  # [m] unknown area counted around a goal: half the lidar's 6 m range
+GAIN_POOL = 4  # cells pooled per side when counting unknown area (speed)
+TRAVEL_SPEED = 0.8 * NAV_MAX_V  # [m/s] average speed assumed along a path
+TURN_RATE = 1.0  # [rad/s] in-place turning speed assumed
+FIXED_OVERHEAD = 3.0  # [s] per goal: planning, accelerating, the stop
+HYSTERESIS = 1.3  # a new goal must score this much better than the current one
+MAX_CANDIDATES = 60  # cells evaluated per segment by gain_rate (evenly spaced)
+
+
+@dataclass
+class GoalContext:
+    """What a strategy may look at. Cells are (row, col); ``distance`` (H, W) [m] from the robot."""
+
+    grid: np.ndarray
+    resolution: float
+    robot_cell: tuple[float, float]
+    robot_heading: float
+    distance: np.ndarray
+    excluded: np.ndarray
+    rng: np.random.Generator
+    current_goal: tuple[int, int] | None = None
+    robot_radius: float = FOOTPRINT_RADIUS
+
+
+@dataclass
+class GoalChoice:
+    """A goal cell, the segment it came from, and every segment considered (for pictures)."""
+
+    cell: tuple[int, int]
+    segment: FrontierSegment | None
+    segments: list[FrontierSegment] = field(default_factory=list)
+    score: float = float("nan")
+
+
+class GoalStrategy(Protocol):
+    """Chooses the next exploration goal. ``replan_period`` [s]: choose again this often while driving (None: only
+    when the goal is reached or given up); ``drop_explored``: give up a goal whose frontier has been seen."""
+
+    name: str
+    replan_period: float | None
+    drop_explored: bool
+
+    def choose(self, ctx: GoalContext) -> GoalChoice | None: ...
+
+
+def _allowed(segments: list[FrontierSegment], ctx: GoalContext) -> list[FrontierSegment]:
+    """Segments restricted to reachable, non-excluded cells; empty ones dropped."""
+    out = []
+    for seg in keep_reachable(segments, ctx.distance):
+        keep = ~ctx.excluded[seg.cells[:, 0], seg.cells[:, 1]]
+        if keep.any():
+            out.append(seg.subset(keep))
+    return out
+
+
+def _nearest_cell(seg: FrontierSegment, ctx: GoalContext) -> tuple[tuple[int, int], float]:
+    d = ctx.distance[seg.cells[:, 0], seg.cells[:, 1]]
+    i = int(np.argmin(d))
+    return (int(seg.cells[i, 0]), int(seg.cells[i, 1])), float(d[i])
+
+
+class Nearest:
+    """Yamauchi (1997): nearest frontier, its closest point."""
+
+    name = "nearest"
+    replan_period: float | None = None
+    drop_explored = False
+
+    def choose(self, ctx: GoalContext) -> GoalChoice | None:
+        segs = _allowed(smoothed_frontiers(ctx.grid, ctx.resolution, ctx.robot_radius), ctx)
+        if not segs:
+            return None
+        best = min(segs, key=lambda s: _nearest_cell(s, ctx)[1])
+        cell, d = _nearest_cell(best, ctx)
+        return GoalChoice(cell, best, segs, -d)
+
+
+class LargestClosest:
+    """Largest frontier, its closest point."""
+
+    name = "largest_closest"
+    replan_period: float | None = None
+    drop_explored = False
+
+    def choose(self, ctx: GoalContext) -> GoalChoice | None:
+        segs = _allowed(smoothed_frontiers(ctx.grid, ctx.resolution, ctx.robot_radius), ctx)
+        if not segs:
+            return None
+        best = max(segs, key=lambda s: s.size)
+        return GoalChoice(_nearest_cell(best, ctx)[0], best, segs, float(best.size))
+
+
+class LargestRandom:
+    """Largest frontier, a random reachable point of it (the thesis's best)."""
+
+    name = "largest_random"
+    replan_period: float | None = None
+    drop_explored = False
+    smooth = True
+
+    def choose(self, ctx: GoalContext) -> GoalChoice | None:
+        if self.smooth:
+            raw = smoothed_frontiers(ctx.grid, ctx.resolution, ctx.robot_radius)
+        else:
+            raw = raw_frontiers(ctx.grid, ctx.resolution)
+        segs = _allowed(raw, ctx)
+        if not segs:
+            return None
+        best = max(segs, key=lambda s: s.size)
+        r, c = best.cells[int(ctx.rng.integers(len(best.cells)))]
+        return GoalChoice((int(r), int(c)), best, segs, float(best.size))
+
+
+class LargestRandomRaw(LargestRandom):
+    """Largest frontier, a random point, without smoothing (the thesis's pre-smoothing variant)."""
+
+    name = "largest_random_raw"
+    smooth = False
+
+
+class ExploreLite:
+    """explore_lite's frontier search and cost (see module doc)."""
+
+    name = "explore_lite"
+    replan_period: float | None = 1.0 / 0.33  # [s] its launch file's planner_frequency 0.33 Hz
+    drop_explored = False
+
+    def __init__(
+        self,
+        potential_scale: float = POTENTIAL_SCALE,
+        gain_scale: float = GAIN_SCALE,
+        min_frontier_size: float = MIN_FRONTIER_SIZE,
+    ) -> None:
+        self.potential_scale = potential_scale
+        self.gain_scale = gain_scale
+        self.min_frontier_size = min_frontier_size
+
+    def frontiers(self, ctx: GoalContext) -> list[FrontierSegment]:
+        """Unknown cells 4-adjacent to a free cell the robot can reach, grouped 8-connected, ≥ min size."""
+        g = ctx.grid
+        reach_free = ((g == FREE) & np.isfinite(ctx.distance)).astype(np.uint8)
+        cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+        near_free = cv2.dilate(reach_free, cross).astype(bool)
+        cand = (g == UNKNOWN) & near_free
+        n, labels = cv2.connectedComponents(cand.astype(np.uint8), connectivity=8)
+        rows, cols = np.nonzero(labels)
+        lab = labels[rows, cols]
+        order = np.argsort(lab, kind="stable")
+        rows, cols, lab = rows[order], cols[order], lab[order]
+        splits = np.flatnonzero(np.diff(lab)) + 1
+        out = []
+        for r, c in zip(np.split(rows, splits), np.split(cols, splits), strict=False):
+            if len(r) and len(r) * ctx.resolution >= self.min_frontier_size:
+                out.append(FrontierSegment(np.column_stack([r, c]).astype(np.int64), len(out)))
+        return out
+
+    def choose(self, ctx: GoalContext) -> GoalChoice | None:
+        segs = self.frontiers(ctx)
+        if not segs:
+            return None
+        rr, rc = ctx.robot_cell
+        res = ctx.resolution
+        costs = []
+        for s in segs:
+            min_distance = float(np.min(np.hypot(s.cells[:, 0] - rr, s.cells[:, 1] - rc))) * res  # [m]
+            costs.append(self.potential_scale * min_distance * res - self.gain_scale * s.size * res)
+        reachable = np.isfinite(ctx.distance) & ~ctx.excluded
+        rows, cols = np.nonzero(reachable)
+        for i in np.argsort(costs, kind="stable"):
+            s = segs[int(i)]
+            cr, cc = s.centroid()
+            if ctx.excluded[int(round(cr)), int(round(cc))] or not len(rows):
+                continue
+            d2 = (rows - cr) ** 2 + (cols - cc) ** 2
+            j = int(np.argmin(d2))
+            if math.sqrt(float(d2[j])) * res > CENTROID_TOLERANCE:
+                continue
+            return GoalChoice((int(rows[j]), int(cols[j])), s, segs, -float(costs[int(i)]))
+        return None
+
+
+def unknown_gain(grid: np.ndarray, resolution: float, radius: float = GAIN_RADIUS) -> np.ndarray:
+    """(H, W) float32 unknown area [m²] within ``radius`` [m] of every cell (pooled by GAIN_POOL for speed)."""
+    h, w = grid.shape
+    unknown = (grid == UNKNOWN).astype(np.float32)
+    small = cv2.resize(unknown, (max(1, w // GAIN_POOL), max(1, h // GAIN_POOL)), interpolation=cv2.INTER_AREA)
+    r = radius / (resolution * GAIN_POOL)
+    k = int(math.ceil(r))
+    yy, xx = np.mgrid[-k : k + 1, -k : k + 1]
+    disc = (xx * xx + yy * yy <= r * r).astype(np.float32)
+    area = cv2.filter2D(small, -1, disc, borderType=cv2.BORDER_CONSTANT) * (resolution * GAIN_POOL) ** 2
+    return cv2.resize(area, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+class GainRate:
+    """Information gain per travel time (see module doc): the default."""
+
+    name = "gain_rate"
+    replan_period: float | None = 2.0  # [s]
+    drop_explored = True
+
+    def choose(self, ctx: GoalContext) -> GoalChoice | None:
+        segs = _allowed(smoothed_frontiers(ctx.grid, ctx.resolution, ctx.robot_radius), ctx)
+        if not segs:
+            return None
+        gain = unknown_gain(ctx.grid, ctx.resolution)
+        cells, owners = [], []
+        for k, s in enumerate(segs):
+            step = max(1, len(s.cells) // MAX_CANDIDATES)
+            cells.append(s.cells[::step])
+            owners.append(np.full(len(cells[-1]), k))
+        cand = np.concatenate(cells)
+        owner = np.concatenate(owners)
+        score = self._score(ctx, cand, gain)
+        i = int(np.argmax(score))
+        best, best_score = (int(cand[i, 0]), int(cand[i, 1])), float(score[i])
+        if ctx.current_goal is not None:
+            cur = np.array([ctx.current_goal])
+            cur_score = float(self._score(ctx, cur, gain)[0])
+            near = np.hypot(cand[:, 0] - cur[0, 0], cand[:, 1] - cur[0, 1]) * ctx.resolution < 0.5
+            if near.any() and np.isfinite(cur_score) and best_score < HYSTERESIS * cur_score:
+                j = int(np.flatnonzero(near)[np.argmax(score[near])])
+                return GoalChoice(ctx.current_goal, segs[int(owner[j])], segs, cur_score)
+        return GoalChoice(best, segs[int(owner[i])], segs, best_score)
+
+    def _score(self, ctx: GoalContext, cells: np.ndarray, gain: np.ndarray) -> np.ndarray:
+        d = ctx.distance[cells[:, 0], cells[:, 1]]
+        bearing = np.arctan2(cells[:, 0] - ctx.robot_cell[0], cells[:, 1] - ctx.robot_cell[1])
+        turn = np.abs(np.arctan2(np.sin(bearing - ctx.robot_heading), np.cos(bearing - ctx.robot_heading)))
+        time = d / TRAVEL_SPEED + turn / TURN_RATE + FIXED_OVERHEAD
+        return np.where(np.isfinite(d), gain[cells[:, 0], cells[:, 1]] / time, -np.inf)
+
+
+STRATEGIES: dict[str, type] = {
+    cls.name: cls for cls in (Nearest, LargestClosest, LargestRandom, LargestRandomRaw, ExploreLite, GainRate)
+}
+DEFAULT_STRATEGY = "gain_rate"
+
+
+def make_strategy(name: str, **params: object) -> GoalStrategy:
+    """The strategy registered under ``name`` (KeyError lists the names)."""
+    if name not in STRATEGIES:
+        raise KeyError(f"unknown strategy '{name}' (known: {', '.join(sorted(STRATEGIES))})")
+    return STRATEGIES[name](**params)  # type: ignore[no-any-return]

@@ -1,0 +1,113 @@
+"""Each strategy's goal choice on a fixed grid is the one its rule says; the explorer blacklists stalled goals."""
+
+from __future__ import annotations
+
+import numpy as np
+from homing.mapping.explorer import Explorer
+from homing.mapping.frontier import raw_frontiers, smoothed_frontiers
+from homing.mapping.grid import OccupancyGrid
+from homing.mapping.strategies import GoalContext, make_strategy
+from homing.robot import Pose2
+
+from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData
+from tests.mapping_helpers import travel_distance
+
+RES = 0.05
+
+
+def _corridor_world() -> tuple[np.ndarray, tuple[int, int]]:
+    """A 2 m-wide corridor along x; robot at its west end. A short opening (small frontier) in the south wall
+    near the robot, and the whole far east end open onto unknown (large frontier)."""
+    g = np.full((100, 200), UNKNOWN, dtype=np.int8)
+    g[40:80, 5:150] = FREE
+    g[40, 5:150] = OCCUPIED
+    g[79, 5:150] = OCCUPIED
+    g[40:80, 5] = OCCUPIED
+    g[25:41, 30:60] = FREE  # a pocket to the south, 1.5 m wide, unknown beyond
+    g[25:41, 29] = g[25:41, 60] = OCCUPIED
+    # everything south of the corridor is solid except a thin unknown strip beyond the pocket
+    south = g[:40]
+    south[south == UNKNOWN] = OCCUPIED
+    g[21:25, 30:60] = UNKNOWN
+    return g, (60, 12)
+
+
+def _ctx(seed: int = 0) -> GoalContext:
+    g, robot = _corridor_world()
+    dist = travel_distance(g, RES, robot)
+    excluded = np.zeros(g.shape, bool)
+    return GoalContext(g, RES, (float(robot[0]), float(robot[1])), 0.0, dist, excluded, np.random.default_rng(seed))
+
+
+def test_nearest_goes_to_the_closest_point_of_the_nearest_segment():
+    ctx = _ctx()
+    choice = make_strategy("nearest").choose(ctx)
+    assert choice is not None
+    near_pocket = choice.cell[1] < 60
+    assert near_pocket
+    # the chosen cell is the minimum travel distance over every reachable frontier cell
+    segs = smoothed_frontiers(ctx.grid, RES)
+    all_d = min(float(np.min(ctx.distance[s.cells[:, 0], s.cells[:, 1]])) for s in segs)
+    assert ctx.distance[choice.cell] == all_d
+
+
+def test_largest_closest_and_largest_random_use_the_largest_segment():
+    ctx = _ctx()
+    lc = make_strategy("largest_closest").choose(ctx)
+    assert lc is not None and lc.segment is not None
+    assert lc.segment.size == max(s.size for s in lc.segments)
+    assert lc.cell[1] > 140  # the open east end
+    cells = lc.segment.cells
+    assert ctx.distance[lc.cell] == np.min(ctx.distance[cells[:, 0], cells[:, 1]])
+    picks = {make_strategy("largest_random").choose(_ctx(seed)).cell for seed in range(5)}
+    assert len(picks) > 1
+    assert all(c[1] > 140 for c in picks)
+
+
+def test_largest_random_raw_picks_a_raw_frontier_cell():
+    ctx = _ctx(3)
+    choice = make_strategy("largest_random_raw").choose(ctx)
+    assert choice is not None
+    raw = raw_frontiers(ctx.grid, RES)
+    largest = max(raw, key=lambda s: s.size)
+    assert choice.cell in {tuple(c) for c in largest.cells}
+
+
+def test_explore_lite_cost_and_centroid():
+    ctx = _ctx()
+    el = make_strategy("explore_lite")
+    segs = el.frontiers(ctx)
+    rr, rc = ctx.robot_cell
+    costs = [3.0 * float(np.min(np.hypot(s.cells[:, 0] - rr, s.cells[:, 1] - rc))) * RES * RES - s.size * RES for s in segs]
+    best = segs[int(np.argmin(costs))]
+    choice = el.choose(ctx)
+    assert choice is not None and choice.segment is not None
+    assert np.array_equal(choice.segment.cells, best.cells)
+    cr, cc = best.centroid()
+    assert np.hypot(choice.cell[0] - cr, choice.cell[1] - cc) * RES <= 1.0
+
+
+def test_gain_rate_prefers_the_big_unknown_over_the_near_pocket():
+    ctx = _ctx()
+    choice = make_strategy("gain_rate").choose(ctx)
+    assert choice is not None and choice.cell[1] > 140
+    assert np.isfinite(ctx.distance[choice.cell])
+
+
+def test_explorer_blacklists_a_goal_without_progress_and_chooses_again():
+    g, robot = _corridor_world()
+    grid = OccupancyGrid.from_map_data(MapData(g, RES, (0.0, 0.0, 0.0)))
+    dist = travel_distance(g, RES, robot)
+    pose = Pose2((robot[1] + 0.5) * RES, (robot[0] + 0.5) * RES, 0.0)
+    ex = Explorer(make_strategy("nearest"), progress_timeout=30.0)
+    first = ex.update(grid, pose, dist, 0.0)
+    assert first.goal is not None and first.changed
+    same = ex.update(grid, pose, dist, 20.0)
+    assert same.goal == first.goal and not same.changed
+    later = ex.update(grid, pose, dist, 31.0)  # no progress for > 30 s
+    assert later.goal is not None and later.goal.distance_to(first.goal) > 0.5
+    assert len(ex.blacklist) == 1
+    # within one robot diameter of the goal: a new goal
+    at_goal = Pose2(later.goal.x - 0.1, later.goal.y, 0.0)
+    nxt = ex.update(grid, at_goal, dist, 32.0)
+    assert nxt.goal is None or nxt.goal.distance_to(later.goal) > 0.2
