@@ -1,0 +1,136 @@
+"""The ``tag_slam`` service: AprilTag sightings and odometry into online landmark SLAM, every tick.
+
+Glue only (ARCHITECTURE.md, services): on each observation it detects tags
+in a *new* camera image (:mod:`homing.perception.apriltag`), feeds odometry,
+the latest scan and the sightings to :class:`homing.mapping.landmark_slam.LandmarkSlam`,
+and writes the results:
+
+- ``/perception/tags``: the tag measurements (base_link) taken *this tick*
+  (an empty list on ticks without a new image) — the run log records them
+  so that ``homing replay --slam`` feeds SLAM exactly the same input;
+- ``/slam/landmarks``: tag id → optimised tag pose in ``map``;
+- ``/map/map_to_odom`` and ``/map/pose``: the tag-corrected map frame;
+- ``/map/grid``: an occupancy grid drawn from the keyframes' scans at their
+  optimised poses. New keyframes are drawn as they come; when the optimiser
+  has moved past keyframes (a loop closed), a fresh grid is rebuilt a batch
+  of scans per tick and swapped in when complete, so no tick waits for it.
+
+Run it after ``grid_slam`` in a mission's ``services`` list when both are
+present: its map keys then override grid_slam's.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from homing.behaviours.registry import Param, register_service
+from homing.robot import Observation, Pose2, RobotAdapter
+
+TAGS_KEY = "/perception/tags"
+LANDMARKS_KEY = "/slam/landmarks"
+MAP_TO_ODOM_KEY = "/map/map_to_odom"
+POSE_KEY = "/map/pose"
+GRID_KEY = "/map/grid"
+REBUILD_SHIFT = 0.03  # [m] a keyframe moved this far since drawn → rebuild the grid
+REBUILD_PERIOD = 5.0  # [s] adapter time between checks for a rebuild
+REBUILD_BATCH = 25  # scans drawn into the grid being rebuilt per tick
+
+
+@register_service(
+    "tag_slam",
+    params=(
+        Param("tag_size", float, 0.16, "m", "black square's edge of the tags"),
+        Param("dock_tag", int, 0, "", "id of the dock's tag, the map's anchor (-1: none)"),
+        Param("keyframe_distance", float, 0.25, "m", "odometry travelled before a new keyframe"),
+        Param("keyframe_angle", float, 0.35, "rad", "odometry turn before a new keyframe"),
+        Param("robust", str, "cauchy", "", "M-estimator on tag factors", choices=("cauchy", "huber", "none")),
+        Param("max_range", float, 3.0, "m", "tags farther than this are ignored"),
+        Param("resolution", float, 0.05, "m", "cell size of the rebuilt occupancy grid"),
+    ),
+    writes=(TAGS_KEY, LANDMARKS_KEY, MAP_TO_ODOM_KEY, POSE_KEY, GRID_KEY),
+)
+class TagSlamService:
+    """Online AprilTag landmark SLAM (GTSAM iSAM2) that refines the map frame and rebuilds the grid."""
+
+    name = "tag_slam"
+    writes = (TAGS_KEY, LANDMARKS_KEY, MAP_TO_ODOM_KEY, POSE_KEY, GRID_KEY)
+
+    def __init__(self, tag_size: float = 0.16, dock_tag: int = 0, keyframe_distance: float = 0.25,
+                 keyframe_angle: float = 0.35, robust: str = "cauchy", max_range: float = 3.0,
+                 resolution: float = 0.05) -> None:
+        from homing.mapping.landmark_slam import LandmarkSlam, SlamConfig
+        from homing.perception.apriltag import TagDetector, TagFilter
+
+        self.detector = TagDetector(tag_size=tag_size, filt=TagFilter(max_range=max_range))
+        self.slam = LandmarkSlam(SlamConfig(
+            keyframe_distance=keyframe_distance, keyframe_angle=keyframe_angle, robust=robust,
+            anchor_tag=None if dock_tag < 0 else dock_tag,
+        ))
+        self.resolution = resolution
+        self.bb: Any = None
+        self.robot: RobotAdapter | None = None
+        self._last_image = -1.0
+        self._grid: Any = None
+        self._drawn: list[Pose2] = []  # pose each keyframe's scan was drawn at
+        self._rebuild: tuple[Any, list[Pose2], int] | None = None
+        self._next_check = 0.0
+
+    def setup(self, robot: RobotAdapter, blackboard: Any) -> None:
+        from homing.mapping.grid import OccupancyGrid
+
+        self.robot = robot
+        self.bb = blackboard
+        self._grid = OccupancyGrid(self.resolution)
+
+    def update(self, obs: Observation) -> None:
+        """Detect, update SLAM and write the blackboard (bounded work: one iSAM2 update per keyframe)."""
+        tags = []
+        if obs.image is not None and obs.image.stamp > self._last_image:
+            self._last_image = obs.image.stamp
+            tags = self.detector.detect(obs.image)
+        added = self.slam.update(obs.stamp, obs.odom.pose, obs.scan, tags)
+        if added:
+            self._draw_latest()
+        self._maintain_grid(obs.stamp)
+        self.bb.set(TAGS_KEY, tags, overwrite=True)
+        self.bb.set(LANDMARKS_KEY, self.slam.landmarks(), overwrite=True)
+        self.bb.set(MAP_TO_ODOM_KEY, self.slam.map_to_odom, overwrite=True)
+        self.bb.set(POSE_KEY, self.slam.pose(obs.odom.pose), overwrite=True)
+        self.bb.set(GRID_KEY, self._grid, overwrite=True)
+
+    def _draw_latest(self) -> None:
+        kf = self.slam.keyframes[-1]
+        pose = self.slam.pose(kf.odom)  # the newest keyframe's optimised pose
+        self._drawn.append(pose)
+        if kf.scan is not None:
+            self._grid.integrate(kf.scan, pose.compose(kf.scan_offset))
+
+    def _maintain_grid(self, now: float) -> None:
+        from homing.mapping.grid import OccupancyGrid
+
+        if self._rebuild is None and now >= self._next_check:
+            self._next_check = now + REBUILD_PERIOD
+            poses = self.slam.keyframe_poses()
+            moved = max((p.distance_to(d) for p, d in zip(poses, self._drawn, strict=False)), default=0.0)
+            if moved > REBUILD_SHIFT:
+                self._rebuild = (OccupancyGrid(self.resolution), poses, 0)
+        if self._rebuild is None:
+            return
+        grid, poses, i = self._rebuild
+        end = min(i + REBUILD_BATCH, len(poses))
+        for kf, pose in zip(self.slam.keyframes[i:end], poses[i:end], strict=False):
+            if kf.scan is not None:
+                grid.integrate(kf.scan, pose.compose(kf.scan_offset))
+        if end < len(poses):
+            self._rebuild = (grid, poses, end)
+            return
+        # Keyframes added while rebuilding are drawn at the poses they were drawn at.
+        for kf, pose in zip(self.slam.keyframes[end:], self._drawn[end:], strict=False):
+            if kf.scan is not None:
+                grid.integrate(kf.scan, pose.compose(kf.scan_offset))
+        self._grid = grid
+        self._drawn[:end] = poses
+        self._rebuild = None
+
+    def shutdown(self) -> None:
+        self.slam.flush()
