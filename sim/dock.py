@@ -1,0 +1,188 @@
+"""Kobuki's docking station: its body, three IR emitters seen by three receivers, and the charging contacts.
+
+Geometry (kobuki docs, "Automatic docking", and ``kobuki_dock_drive``): the
+dock's three emitters light three regions in front of it, left, centre and
+right, each split into a near and a far sub-field; regions may overlap at
+their borders. A robot's receivers (right, centre, left) each report the bit
+codes of the sub-fields they sit in, provided they face the dock. Left and
+right are the **dock's**: standing at the dock looking out, the left region
+is on your left (``kobuki_dock_drive``: a robot in the left region rotates
+counter-clockwise until its *right* receiver sees the left signal, then
+drives across to the centre line).
+
+The emitter frame ``E`` sits at the middle of the dock's front face, x out
+of the dock into the room, y to the dock's left. A receiver at (dx, dy) in
+``E`` with range r = |(dx, dy)| and bearing φ = atan2(dy, dx) is lit when
+0 < dx ≤ ``FIELD_DEPTH`` and |dy| ≤ ``FIELD_HALF_WIDTH`` (the "about
+2 m × 5 m" of DESIGN.md), and nothing solid lies between; then
+
+- NEAR (r ≤ ``NEAR_RANGE``) or FAR (beyond) sub-field;
+- CENTER if |φ| ≤ ``CENTER_HALF_ANGLE`` or |dy| ≤ ``CENTER_MIN_HALF_WIDTH``;
+- LEFT if φ ≥ ``SIDE_INNER_ANGLE`` and dy > 0, RIGHT if φ ≤ −``SIDE_INNER_ANGLE`` and dy < 0
+
+(between 7° and 10° both CENTER and a side code are set). A receiver sees
+the dock when the emitter lies within ``RECEIVER_HALF_FOV`` of its axis.
+These numbers are this model's, chosen to match the documented picture; the
+real dock's beam pattern is not published.
+
+Contacts: the robot charges only within ``CONTACT_TOL_POS`` and
+``CONTACT_TOL_YAW`` of the docked pose. The dock's guide funnels a robot
+that pushes forward within ``FUNNEL_POS`` / ``FUNNEL_YAW`` of it towards the
+docked pose; the body itself is a box that stops the robot.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from homing.robot.frames import wrap_angle
+from homing.robot.turtlebot import BASE_RADIUS
+from homing.robot.types import IR, DockIR, Pose2
+
+DOCK_DEPTH = 0.12  # [m] wall face to the dock's front face (where the robot's rim stops)
+DOCK_WIDTH = 0.30  # [m]
+DOCK_HEIGHT = 0.12  # [m] below the lidar: the lidar does not see the dock
+FIELD_DEPTH = 2.0  # [m] IR field depth in front of the emitters
+FIELD_HALF_WIDTH = 2.5  # [m] IR field half width
+NEAR_RANGE = 0.8  # [m] near/far sub-field boundary
+CENTER_HALF_ANGLE = math.radians(10.0)  # [rad] centre beam
+CENTER_MIN_HALF_WIDTH = 0.03  # [m] centre beam's width right at the dock
+SIDE_INNER_ANGLE = math.radians(7.0)  # [rad] side regions start here (overlap with the centre)
+IR_HEIGHT = 0.06  # [m] emitters and receivers above the floor
+# Receivers on the bumper rim: (name, bearing of position and axis in base_link [rad])
+RECEIVERS = (("right", math.radians(-75.0)), ("centre", 0.0), ("left", math.radians(75.0)))
+RECEIVER_RADIUS = BASE_RADIUS - 0.02  # [m] receivers sit just inside the bumper's rim
+RECEIVER_HALF_FOV = {"right": math.radians(40.0), "centre": math.radians(20.0), "left": math.radians(40.0)}
+CONTACT_TOL_POS = 0.005  # [m] contacts close only this close to the docked pose
+CONTACT_TOL_YAW = math.radians(3.0)  # [rad]
+FUNNEL_POS = 0.04  # [m] the guide captures a robot pushing in within this lateral offset…
+FUNNEL_DEPTH = 0.06  # [m] …and this far from the stop
+FUNNEL_YAW = math.radians(12.0)  # [rad] …and this heading error
+FUNNEL_TIME = 0.15  # [s] time constant of the guide's centring
+
+
+@dataclass(frozen=True)
+class Dock:
+    """The docking station. ``station``: pose of the middle of the dock's back on the wall face,
+    x pointing out into the room. ``docked``: base_link of a robot sitting on its contacts."""
+
+    station: Pose2
+
+    @cached_property
+    def emitter(self) -> Pose2:
+        """Frame E: middle of the front face, x out of the dock."""
+        return self.station.compose(Pose2(DOCK_DEPTH, 0.0, 0.0))
+
+    @cached_property
+    def docked(self) -> Pose2:
+        """The docked robot's base_link pose (facing the dock)."""
+        return self.station.compose(Pose2(DOCK_DEPTH + BASE_RADIUS, 0.0, math.pi))
+
+    def staging(self, distance: float = 1.0) -> Pose2:
+        """A pose ``distance`` [m] in front of the docked pose, facing the dock."""
+        return self.station.compose(Pose2(DOCK_DEPTH + BASE_RADIUS + distance, 0.0, math.pi))
+
+    # --- IR -----------------------------------------------------------------
+    def codes_at(self, xy: np.ndarray) -> np.ndarray:
+        """(N,) int IR bit codes lit at world points ``xy`` (N, 2), ignoring occlusion and receiver FOV."""
+        e = self.emitter
+        local = e.inverse().transform_points(np.asarray(xy, dtype=float).reshape(-1, 2))
+        dx, dy = local[:, 0], local[:, 1]
+        r = np.hypot(dx, dy)
+        phi = np.arctan2(dy, dx)
+        lit = (dx > 0.0) & (dx <= FIELD_DEPTH) & (np.abs(dy) <= FIELD_HALF_WIDTH)
+        near = r <= NEAR_RANGE
+        centre = (np.abs(phi) <= CENTER_HALF_ANGLE) | (np.abs(dy) <= CENTER_MIN_HALF_WIDTH)
+        left = (phi >= SIDE_INNER_ANGLE) & (dy > 0)
+        right = (phi <= -SIDE_INNER_ANGLE) & (dy < 0)
+        codes = np.zeros(len(local), dtype=np.int64)
+        codes |= np.where(centre, np.where(near, int(IR.NEAR_CENTER), int(IR.FAR_CENTER)), 0)
+        codes |= np.where(left, np.where(near, int(IR.NEAR_LEFT), int(IR.FAR_LEFT)), 0)
+        codes |= np.where(right, np.where(near, int(IR.NEAR_RIGHT), int(IR.FAR_RIGHT)), 0)
+        return np.where(lit, codes, 0)
+
+    def receivers(self, pose: Pose2) -> list[tuple[str, np.ndarray, float]]:
+        """(name, world xy, axis yaw) of the robot's three receivers at ``pose``."""
+        out = []
+        for name, bearing in RECEIVERS:
+            p = pose.compose(Pose2(RECEIVER_RADIUS * math.cos(bearing), RECEIVER_RADIUS * math.sin(bearing), bearing))
+            out.append((name, np.array([p.x, p.y]), p.theta))
+        return out
+
+    def ir(self, pose: Pose2, clear: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> DockIR:
+        """What the receivers of a robot at ``pose`` see.
+
+        ``clear(a, b)``: (N,) bool, whether the segments from the emitter
+        points ``a`` (N, 2) to receivers ``b`` (N, 2) are unobstructed; None
+        assumes they all are.
+        """
+        e = self.emitter
+        if math.hypot(pose.x - e.x, pose.y - e.y) > FIELD_DEPTH + FIELD_HALF_WIDTH + BASE_RADIUS:
+            return DockIR()
+        recs = self.receivers(pose)
+        pts = np.array([p for _, p, _ in recs])
+        codes = self.codes_at(pts)
+        facing = np.array([
+            abs(wrap_angle(math.atan2(e.y - p[1], e.x - p[0]) - axis)) <= RECEIVER_HALF_FOV[name]
+            for name, p, axis in recs
+        ])
+        seen = facing & (codes != 0)
+        if clear is not None and seen.any():
+            src = np.tile([e.x, e.y], (len(pts), 1))
+            seen &= np.asarray(clear(src, pts), dtype=bool)
+        vals = {name: IR(int(c)) if s else IR.NONE for (name, _, _), c, s in zip(recs, codes, seen, strict=True)}
+        return DockIR(right=vals["right"], centre=vals["centre"], left=vals["left"])
+
+    # --- contacts and body -----------------------------------------------------
+    def docked_error(self, pose: Pose2) -> tuple[float, float, float]:
+        """(along, across, yaw) error of ``pose`` from the docked pose [m, m, rad]; along > 0 is too far out."""
+        d = self.docked.between(pose)
+        return -d.x, d.y, d.theta
+
+    def contacts_closed(self, pose: Pose2) -> bool:
+        """Whether the charging contacts touch: within a few mm and degrees of the docked pose."""
+        d = self.docked
+        if abs(pose.x - d.x) > CONTACT_TOL_POS or abs(pose.y - d.y) > CONTACT_TOL_POS:
+            return False
+        along, across, yaw = self.docked_error(pose)
+        return math.hypot(along, across) <= CONTACT_TOL_POS and abs(yaw) <= CONTACT_TOL_YAW
+
+    def funnel(self, pose: Pose2, v: float, dt: float) -> Pose2:
+        """The mechanical guide: a robot pushing in (v > 0) near the docked pose is centred on it."""
+        if v <= 0.0 or self.docked.distance_to(pose) > FUNNEL_DEPTH + FUNNEL_POS:
+            return pose
+        along, across, yaw = self.docked_error(pose)
+        if not (-0.01 <= along <= FUNNEL_DEPTH and abs(across) <= FUNNEL_POS and abs(yaw) <= FUNNEL_YAW):
+            return pose
+        k = math.exp(-dt / FUNNEL_TIME)
+        d = self.docked
+        return d.compose(Pose2(-max(along, 0.0), across * k, yaw * k))
+
+    def push_out(self, pose: Pose2, radius: float = BASE_RADIUS) -> tuple[Pose2, float | None]:
+        """Resolve the robot's disc against the dock's box.
+
+        Returns the corrected pose and the contact's bearing in base_link
+        [rad] (None if no contact).
+        """
+        s = self.station
+        e = self.emitter
+        if math.hypot(pose.x - e.x, pose.y - e.y) > radius + DOCK_DEPTH + DOCK_WIDTH:
+            return pose, None
+        c, sn = math.cos(s.theta), math.sin(s.theta)
+        rx, ry = pose.x - s.x, pose.y - s.y
+        lx, ly = c * rx + sn * ry, -sn * rx + c * ry  # robot centre in the station frame
+        qx = min(max(lx, 0.0), DOCK_DEPTH)  # closest point of the box
+        qy = min(max(ly, -DOCK_WIDTH / 2), DOCK_WIDTH / 2)
+        dx, dy = lx - qx, ly - qy
+        dist = math.hypot(dx, dy)
+        if dist >= radius or dist == 0.0:
+            return pose, None
+        mx, my = qx + dx / dist * radius, qy + dy / dist * radius
+        wx, wy = s.x + c * mx - sn * my, s.y + sn * mx + c * my
+        # the contact lies towards (−dx, −dy) from the robot's centre, in the station frame
+        bearing = wrap_angle(math.atan2(-(sn * dx + c * dy), -(c * dx - sn * dy)) - pose.theta)
+        return Pose2(wx, wy, pose.theta), bearing
