@@ -16,13 +16,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pybullet as p
 from homing.robot.turtlebot import BASE_RADIUS
 from homing.robot.types import Pose2
 from homing.sim.dock import DOCK_DEPTH, DOCK_HEIGHT, DOCK_WIDTH
+from homing.sim.quiet import import_pybullet
 from homing.sim.tags import add_tag_bodies
 from homing.sim.walls import build_mesh
 from homing.sim.world import World
+
+p = import_pybullet()
 
 ROBOT_HEIGHT = 0.10  # [m] collision cylinder (the bumper ring)
 ROBOT_Z = 0.06  # [m] its centre above the floor
