@@ -6,7 +6,9 @@ recovery motion), and writes ``/cmd_vel``. Long ones derive from
 :class:`~homing.behaviours.base.LongAction`, which owns the deadline and
 cancellation; failures carry a typed ``failure_reason`` (``no_path``,
 ``goal_occupied``, ``start_occupied``, ``no_progress``, ``blocked``, …) so a
-recovery node can choose by cause.
+recovery node can choose by cause: the leaves also write it to
+``failure_key`` (default ``/nav/failure``; None while running or after a
+success), so a recovery branch can test it with ``CheckBlackboard``.
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ NAVIGATOR_KEY = "/nav/navigator"
 GRID_KEY = "/map/grid"
 POSE_KEY = "/map/pose"
 MAP_TO_ODOM_KEY = "/map/map_to_odom"
+FAILURE_KEY = "/nav/failure"
+FAILURE_PARAM = Param("failure_key", str, FAILURE_KEY, doc="blackboard key the typed failure reason is written to")
 
 _REASONS: tuple[tuple[type, str], ...] = (
     (StartOccupied, "start_occupied"), (GoalOccupied, "goal_occupied"), (NoPathFound, "no_path"),
@@ -50,8 +54,22 @@ def failure_reason(error: Exception | None) -> str:
     return "failed"
 
 
+class _ReportsFailure(LongAction):
+    """A long action that publishes its ``failure_reason`` at ``failure_key`` for recovery branches."""
+
+    failure_key: str = FAILURE_KEY
+
+    def initialise(self) -> None:
+        self.write(self.failure_key, None)
+        super().initialise()
+
+    def on_failure(self) -> Status:
+        self.write(self.failure_key, self.failure_reason)
+        return Status.FAILURE
+
+
 @register("NavigateToPose")
-class NavigateToPose(LongAction):
+class NavigateToPose(_ReportsFailure):
     """Drive to a goal pose in ``map`` with the navigation service's planner and controller; RUNNING while driving.
 
     The goal is ``x``, ``y``, ``theta`` when given, otherwise the Pose2 at
@@ -65,15 +83,17 @@ class NavigateToPose(LongAction):
         Param("goal_key", str, "/nav/goal", doc="blackboard key holding a Pose2 goal when x/y are not given"),
         Param("xy_tolerance", float, 0.15, "m", "reached within this distance"),
         Param("yaw_tolerance", float, 0.25, "rad", "and this heading error"),
+        FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
     READS = (OBSERVATION_KEY, NAVIGATOR_KEY, GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, "$goal_key")
-    WRITES = (CMD_VEL_KEY,)
+    WRITES = (CMD_VEL_KEY, "$failure_key")
 
     def __init__(self, name: str, x: float = math.nan, y: float = math.nan, theta: float = math.nan,
                  goal_key: str = "/nav/goal", xy_tolerance: float = 0.15, yaw_tolerance: float = 0.25,
-                 timeout: float = 0.0, **kwargs: Any) -> None:
+                 timeout: float = 0.0, failure_key: str = FAILURE_KEY, **kwargs: Any) -> None:
         self.goal_key = goal_key
+        self.failure_key = failure_key
         super().__init__(name, timeout=timeout, **kwargs)
         self.x, self.y, self.theta = x, y, theta
         self.xy_tolerance, self.yaw_tolerance = xy_tolerance, yaw_tolerance
@@ -112,11 +132,11 @@ class NavigateToPose(LongAction):
             self.navigator.cancel()
 
 
-class _MotionLeaf(LongAction):
+class _MotionLeaf(_ReportsFailure):
     """Runs one :mod:`homing.navigation.recovery` motion on odometry and the scan until it ends."""
 
     READS = (OBSERVATION_KEY, NAVIGATOR_KEY)
-    WRITES = (CMD_VEL_KEY,)
+    WRITES = (CMD_VEL_KEY, "$failure_key")
 
     def make(self) -> Recovery:
         raise NotImplementedError
@@ -150,11 +170,13 @@ class Spin(_MotionLeaf):
     PARAMS = (
         Param("angle", float, 2 * math.pi, "rad", "relative turn, counter-clockwise positive"),
         Param("omega", float, 1.0, "rad/s", "turning speed"),
+        FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
 
     def __init__(self, name: str, angle: float = 2 * math.pi, omega: float = 1.0, timeout: float = 0.0,
-                 **kwargs: Any) -> None:
+                 failure_key: str = FAILURE_KEY, **kwargs: Any) -> None:
+        self.failure_key = failure_key
         super().__init__(name, timeout=timeout, **kwargs)
         self.angle, self.omega = angle, omega
 
@@ -169,11 +191,13 @@ class BackUp(_MotionLeaf):
     PARAMS = (
         Param("distance", float, 0.15, "m", "how far to back up"),
         Param("speed", float, 0.05, "m/s", "backing speed"),
+        FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
 
     def __init__(self, name: str, distance: float = 0.15, speed: float = 0.05, timeout: float = 0.0,
-                 **kwargs: Any) -> None:
+                 failure_key: str = FAILURE_KEY, **kwargs: Any) -> None:
+        self.failure_key = failure_key
         super().__init__(name, timeout=timeout, **kwargs)
         self.distance, self.speed = distance, speed
 

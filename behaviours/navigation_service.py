@@ -4,7 +4,8 @@ Like Nav2's planner and controller servers beside a BT: the service builds
 one navigator (costmap, planner and controller plugins chosen by name in the
 mission's ``services:`` parameters), writes it to ``/nav/navigator``, and
 every tick, before the tree, refreshes its costmap from ``/map/grid``, the
-latest scan and ``/map/pose``, so leaves that only read the costmap (frontier
+latest scan and ``/map/pose`` (written by ``grid_slam``, ``tag_slam`` or any
+localiser on a known map: list it before ``navigation``), so leaves that only read the costmap (frontier
 ranking, path checks) see the present world even when nothing navigates.
 Leaves drive with it (:mod:`homing.behaviours.motion`).
 """
@@ -23,6 +24,7 @@ from homing.robot.turtlebot import FOOTPRINT_RADIUS
 from py_trees.common import Access
 
 NAVIGATOR_KEY = "/nav/navigator"
+GOAL_KEY = "/nav/goal"  # the default goal slot of NavigateToPose: created empty here, set by any leaf
 GRID_KEY = "/map/grid"
 POSE_KEY = "/map/pose"
 MAP_TO_ODOM_KEY = "/map/map_to_odom"
@@ -33,6 +35,8 @@ MAP_TO_ODOM_KEY = "/map/map_to_odom"
     params=(
         Param("planner", str, "fmm", "", "global planner plugin", choices=tuple(sorted(PLANNERS))),
         Param("controller", str, "rpp", "", "local controller plugin", choices=tuple(sorted(CONTROLLERS))),
+        Param("fallback", str, "dwb", "", "rpp's fallback when its arc is blocked ('none': stop and report blocked)",
+              choices=("dwb", "none")),
         Param("footprint_radius", float, FOOTPRINT_RADIUS, "m", "robot radius the costmap inflates by"),
         Param("inflation_radius", float, 0.55, "m", "inflation cost reaches this far from obstacles"),
         Param("cost_scaling_factor", float, 5.0, "1/m", "decay rate of the inflation cost"),
@@ -41,25 +45,25 @@ MAP_TO_ODOM_KEY = "/map/map_to_odom"
         Param("yaw_tolerance", float, 0.25, "rad", "and this heading error"),
         Param("allow_unknown", bool, True, "", "plan through unknown cells"),
     ),
-    writes=(NAVIGATOR_KEY,),
-    requires=("grid_slam",),
+    writes=(NAVIGATOR_KEY, GOAL_KEY),
 )
 class NavigationService:
     """Costmap, global planner and local controller, chosen by name; writes ``/nav/navigator``."""
 
     name = "navigation"
-    writes = (NAVIGATOR_KEY,)
+    writes = (NAVIGATOR_KEY, GOAL_KEY)
     reads = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY)
 
     def __init__(self, planner: str = "fmm", controller: str = "rpp", footprint_radius: float = FOOTPRINT_RADIUS,
                  inflation_radius: float = 0.55, cost_scaling_factor: float = 5.0, max_speed: float = 0.5,
-                 xy_tolerance: float = 0.15, yaw_tolerance: float = 0.25, allow_unknown: bool = True) -> None:
+                 xy_tolerance: float = 0.15, yaw_tolerance: float = 0.25, allow_unknown: bool = True,
+                 fallback: str = "dwb") -> None:
         self.navigator = Navigator(
             planner=planner, controller=controller,
             costmap=CostmapParams(footprint_radius=footprint_radius, inflation_radius=inflation_radius,
                                   cost_scaling_factor=cost_scaling_factor),
             planner_params={"allow_unknown": allow_unknown},
-            controller_params={"desired_v": max_speed, "footprint_radius": footprint_radius},
+            controller_params=controller_params(controller, max_speed, footprint_radius, fallback),
             xy_tolerance=xy_tolerance, yaw_tolerance=yaw_tolerance,
         )
         self.bb: Any = None
@@ -69,6 +73,7 @@ class NavigationService:
         for key in self.reads:
             blackboard.register_key(key=key, access=Access.READ)
         blackboard.set(NAVIGATOR_KEY, self.navigator, overwrite=True)
+        blackboard.set(GOAL_KEY, None, overwrite=False)
 
     def update(self, obs: Observation) -> None:
         """Refresh the costmap (cheap when neither the grid nor the scan changed)."""
@@ -84,3 +89,11 @@ class NavigationService:
             return self.bb.get(key)
         except KeyError:
             return None
+
+
+def controller_params(controller: str, max_speed: float, footprint_radius: float, fallback: str) -> dict[str, Any]:
+    """The service's parameters in the named controller's own spelling."""
+    if controller == "dwb":
+        return {"max_v": max_speed, "footprint_radius": footprint_radius}
+    return {"desired_v": max_speed, "footprint_radius": footprint_radius,
+            "fallback": None if fallback == "none" else fallback}

@@ -13,7 +13,11 @@ the latest scan with the robot's round footprint (:func:`free_distance`):
 the speed is capped so the robot can brake before the first point it would
 touch, and when it cannot move at all :class:`CollisionAhead` is raised —
 the robot never drives into what the lidar sees, even when the costmap is
-stale. Speeds stay ≤ ``NAV_MAX_V`` (0.5 m/s).
+stale. When the arc is blocked, rpp hands the tick to its ``fallback``
+controller (by name, default ``dwb``: :mod:`homing.navigation.dwb`, which
+samples arcs and turn-then-go escapes and steers around) instead of stopping;
+with ``fallback=None`` it raises :class:`CollisionAhead`. Speeds stay ≤
+``NAV_MAX_V`` (0.5 m/s).
 
 Frames: the pose and the path are in the same frame (``map``); scan points
 are in ``base_link`` at the present time (the navigator moves a stale scan
@@ -159,14 +163,25 @@ class RegulatedPurePursuit:
     max_accel: float = MAX_ACCEL  # [m/s²]
     footprint_radius: float = FOOTPRINT_RADIUS  # [m]
     max_path_offset: float = 1.0  # [m] farther from the path than this: InvalidPath
+    fallback: str | None = "dwb"  # controller asked when the arc is blocked (None: raise CollisionAhead)
     name: str = "rpp"
 
     def __post_init__(self) -> None:
         self.desired_v = min(self.desired_v, NAV_MAX_V)
         self.carrot: np.ndarray | None = None  # last carrot [m], map frame (for pictures)
+        self.fallback_used = 0  # commands the fallback gave since the last reset
+        self._fallback: Controller | None = None
+        if self.fallback is not None:
+            if self.fallback == self.name:
+                raise ValueError("a controller cannot be its own fallback")
+            self._fallback = make_controller(self.fallback, max_v=self.desired_v, max_omega=self.max_omega,
+                                             footprint_radius=self.footprint_radius)
 
     def reset(self) -> None:
         self.carrot = None
+        self.fallback_used = 0
+        if self._fallback is not None:
+            self._fallback.reset()
 
     def compute(self, pose: Pose2, speed: Twist2, path: np.ndarray, scan_points: np.ndarray,
                 costmap: Costmap | None, dt: float) -> Twist2:
@@ -187,7 +202,11 @@ class RegulatedPurePursuit:
         v = min(v, max(0.0, speed.v) + self.max_accel * max(dt, 1e-3))
         v_safe = safe_speed(v, v * kappa, scan_points, self.footprint_radius + SAFETY_MARGIN)
         if v > 1e-6 and v_safe < 0.01:
-            raise CollisionAhead("an obstacle in the scan blocks the path ahead")
+            if self._fallback is None:
+                raise CollisionAhead("an obstacle in the scan blocks the path ahead")
+            # The arc is blocked: let the sampling controller steer around (or raise itself).
+            self.fallback_used += 1
+            return self._fallback.compute(pose, speed, path, scan_points, costmap, dt)
         v = v_safe
         omega = float(np.clip(v * kappa, -self.max_omega, self.max_omega))
         return Twist2(v, omega)
@@ -253,7 +272,16 @@ CONTROLLERS: dict[str, type] = {"rpp": RegulatedPurePursuit}
 
 def make_controller(name: str, **params: object) -> Controller:
     """The controller registered as ``name`` (``rpp``, ``dwb``) with its parameters."""
+    _load_plugins()
     if name not in CONTROLLERS:
         raise KeyError(f"unknown controller '{name}' (known: {', '.join(sorted(CONTROLLERS))})")
     controller: Controller = CONTROLLERS[name](**params)
     return controller
+
+
+def _load_plugins() -> None:
+    """Import the controllers that live in their own modules (they register themselves)."""
+    from homing.navigation import dwb  # noqa: F401  (registers "dwb")
+
+
+_load_plugins()

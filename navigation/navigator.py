@@ -10,6 +10,11 @@ command to ``/cmd_vel``. Failures are typed (the planner's
 :class:`~homing.navigation.controller.ControllerError`, :class:`NoProgress`)
 and land in ``feedback.error`` so a recovery can choose by cause.
 
+Progress (Nav2's progress checker) counts turning on the spot a few times
+only; a ``map_to_odom`` correction larger than a few centimetres replans at
+once, so the path follows the map the robot is now placed in. The controller
+checks the last few scans moved to the present by odometry.
+
 Frames: goal, path and ``pose_in_map`` in ``map``; progress and the motion of
 a stale scan measured in ``odom``. Time is the observation's stamp (the
 adapter's clock).
@@ -42,11 +47,16 @@ PLAN_PATIENCE = 2.0  # [s] how long planning may keep failing before the goal fa
 BLOCKED_TIMEOUT = 8.0  # [s] stopped by an obstacle in the scan this long: fail
 PROGRESS_RADIUS = 0.25  # [m] Nav2 SimpleProgressChecker required_movement_radius (0.5 there)
 PROGRESS_TIME = 10.0  # [s] Nav2 movement_time_allowance
+PROGRESS_ANGLE = math.pi / 2  # [rad] turning this much on the spot counts as progress…
+PROGRESS_TURNS = 2  # …this many times in a row at most (a robot spinning forever makes none)
 STATIC_PERIOD = 1.0  # [s] re-read an unchanged grid object at most this often
 HEADING_GAIN = 1.5  # [1/s] final in-place rotation: ω = gain·error
 HEADING_MIN_OMEGA = 0.3  # [rad/s]
 HEADING_MAX_OMEGA = 1.2  # [rad/s]
 ODOM_HISTORY = 3.0  # [s] odometry kept to move a stale scan to the present
+MAP_JUMP_XY = 0.05  # [m] a map → odom correction this large replans at once (the path was planned in the old map)
+MAP_JUMP_YAW = 0.05  # [rad]
+SCAN_MEMORY = 3  # scans (≈ 0.5 s at 5.5 Hz) whose points the controller checks: fills single-scan dropouts
 
 
 class NavStatus(enum.Enum):
@@ -83,7 +93,7 @@ class NavFeedback:
 class Navigator:
     """Costmap + planner + controller chosen by name; see the module doc.
 
-    ``planner``: ``dijkstra``, ``fmm`` or ``astar``; ``controller``: ``rpp``;
+    ``planner``: ``dijkstra``, ``fmm`` or ``astar``; ``controller``: ``rpp`` (with its ``dwb`` fallback) or ``dwb``;
     ``*_params`` go to their constructors. Not thread-safe; one goal at a time.
     """
 
@@ -114,6 +124,7 @@ class Navigator:
         self._static_time = -math.inf
         self._scan_stamp: float | None = None
         self._odom: deque[tuple[float, Pose2]] = deque()
+        self._scans: deque[tuple[float, Pose2, np.ndarray]] = deque(maxlen=SCAN_MEMORY)  # stamp, odom then, points
         self._reset_goal_state()
 
     # -- goals ---------------------------------------------------------------------------
@@ -140,8 +151,12 @@ class Navigator:
         self._plan_fail_since: float | None = None
         self._blocked_since: float | None = None
         self._checkpoint: tuple[float, Pose2] | None = None
+        self._turned = 0.0  # [rad] turned on the spot since the checkpoint (odometry)
+        self._turn_credits = 0  # times turning counted as progress since the robot last moved
+        self._last_odom: Pose2 | None = None
         self._last_stamp: float | None = None
         self._force_replan = True
+        self._plan_map_to_odom: Pose2 | None = None
 
     # -- world model -----------------------------------------------------------------------
     def update_costmap(self, obs: Observation, grid: Any, pose_in_map: Pose2,
@@ -166,12 +181,20 @@ class Navigator:
             self.costmap.update_scan(scan, pose_then)
 
     def scan_points_now(self, obs: Observation) -> np.ndarray:
-        """(M, 2) [m] the latest scan's end points in base_link *now*, moved by odometry since the scan."""
+        """(M, 2) [m] the last ``SCAN_MEMORY`` scans' end points in base_link *now*, moved by odometry since each scan.
+
+        Several scans, not one: a ray the lidar drops (grazing incidence,
+        noise) leaves a gap in one scan that a disc could slip through; the
+        previous scans fill it. They are at most ~0.5 s old, so odometry's
+        drift over that span is millimetres.
+        """
         if obs.scan is None:
             return np.zeros((0, 2))
         self._remember_odom(obs)
-        motion = obs.odom.pose.between(self._odom_at(obs.scan.stamp))
-        return motion.transform_points(obs.scan.points())
+        if not self._scans or self._scans[-1][0] != obs.scan.stamp:
+            self._scans.append((obs.scan.stamp, self._odom_at(obs.scan.stamp), obs.scan.points()))
+        now = obs.odom.pose
+        return np.vstack([now.between(then).transform_points(pts) for _, then, pts in self._scans])
 
     def _remember_odom(self, obs: Observation) -> None:
         if not self._odom or self._odom[-1][0] < obs.stamp:
@@ -206,15 +229,19 @@ class Navigator:
         if dist <= self.goal_xy_tolerance:
             return self._final_heading(pose_in_map)
         # Progress, on odometry so a map correction is not mistaken for motion.
-        if self._checkpoint is None or self._checkpoint[1].distance_to(obs.odom.pose) >= self.progress_radius:
-            self._checkpoint = (now, obs.odom.pose)
-        elif now - self._checkpoint[0] > self.progress_time:
+        if self._no_progress(now, obs.odom.pose):
             return self._fail(NoProgress(f"moved less than {self.progress_radius} m in {self.progress_time:.0f} s"))
+        # A map correction moved the robot against the map: the old path may now cut a wall.
+        if map_to_odom is not None and self._plan_map_to_odom is not None:
+            jump = self._plan_map_to_odom.between(map_to_odom)
+            if math.hypot(jump.x, jump.y) > MAP_JUMP_XY or abs(jump.theta) > MAP_JUMP_YAW:
+                self._force_replan = True
         # Plan.
         if self._force_replan or now - self._plan_time >= self.replan_period or self._path_blocked(pose_in_map):
             try:
                 self.path = self.planner.plan(self.costmap, pose_in_map, self.goal)
                 self._plan_time, self._plan_fail_since, self._force_replan = now, None, False
+                self._plan_map_to_odom = map_to_odom
                 fb.replans += 1
             except PlanningError as err:
                 if self._plan_fail_since is None:
@@ -248,6 +275,19 @@ class Navigator:
         except ControllerError as err:
             return self._fail(err)
         return NavStatus.RUNNING, cmd, fb
+
+    def _no_progress(self, now: float, odom: Pose2) -> bool:
+        """Nav2's SimpleProgressChecker, plus turning on the spot counted as progress ``PROGRESS_TURNS`` times at most."""
+        if self._last_odom is not None:
+            self._turned += abs(wrap_angle(odom.theta - self._last_odom.theta))
+        self._last_odom = odom
+        if self._checkpoint is None or self._checkpoint[1].distance_to(odom) >= self.progress_radius:
+            self._checkpoint, self._turned, self._turn_credits = (now, odom), 0.0, 0
+        elif self._turned >= PROGRESS_ANGLE and self._turn_credits < PROGRESS_TURNS:
+            # Turning to face a new path or to escape a corner is work towards the goal, but only so often.
+            self._checkpoint, self._turned = (now, self._checkpoint[1]), 0.0
+            self._turn_credits += 1
+        return now - self._checkpoint[0] > self.progress_time
 
     def _final_heading(self, pose: Pose2) -> tuple[NavStatus, Twist2, NavFeedback]:
         assert self.goal is not None

@@ -22,10 +22,10 @@ DT = 0.05  # [s] control period
 DECEL = 1.0  # [m/s²] the fake base cannot brake harder than this
 
 
-def _drive(path: np.ndarray, rects: np.ndarray, pose: Pose2, seconds: float,
-           appear_at: float = 0.0) -> tuple[list[Pose2], list[Twist2], int]:
+def _drive(path: np.ndarray, rects: np.ndarray, pose: Pose2, seconds: float, appear_at: float = 0.0,
+           name: str = "rpp", **params: object) -> tuple[list[Pose2], list[Twist2], int]:
     """Run the controller on a unicycle whose speed changes at ≤ DECEL; obstacles show up at ``appear_at`` [s]."""
-    ctrl = make_controller("rpp")
+    ctrl = make_controller(name, **params)
     speed = Twist2()
     poses, cmds, blocked = [pose], [], 0
     empty = np.zeros((0, 4))
@@ -62,7 +62,7 @@ def test_follows_an_l_shaped_path_within_limits() -> None:
 def test_stops_before_an_obstacle_that_appears_in_the_scan() -> None:
     path = np.array([[0.0, 0.0], [6.0, 0.0]])
     box = np.array([[2.5, -0.4, 2.8, 0.4]])  # a box across the path, seen only from t = 2 s
-    poses, cmds, blocked = _drive(path, box, Pose2(0.0, 0.0, 0.0), 15.0, appear_at=2.0)
+    poses, cmds, blocked = _drive(path, box, Pose2(0.0, 0.0, 0.0), 15.0, appear_at=2.0, fallback=None)
     xy = np.array([[p.x, p.y] for p in poses])
     gap = point_rect_distance(xy, box)[:, 0]
     assert gap.min() >= BASE_RADIUS  # the body never touches the box
@@ -110,3 +110,61 @@ def test_far_from_the_path_is_a_typed_failure() -> None:
     with pytest.raises(InvalidPath):
         make_controller("rpp").compute(Pose2(0, 3, 0), Twist2(), np.array([[0.0, 0.0], [5.0, 0.0]]),
                                        np.zeros((0, 2)), None, DT)
+
+
+# -- the DWB controller and rpp's fallback ---------------------------------------------------
+# A path around a box that passes its corners 0.22–0.25 m off: pure pursuit's lookahead cuts
+# the first corner and its scan check then blocks every arc (it used to stall here).
+AROUND = np.array([[0.0, 0.0], [2.25, 0.0], [2.25, 0.62], [3.05, 0.62], [3.05, 0.0], [6.0, 0.0]])
+BOX = np.array([[2.5, -0.4, 2.8, 0.4]])
+
+
+def _arrival(poses: list[Pose2], goal: tuple[float, float]) -> float | None:
+    k = next((i for i, p in enumerate(poses) if math.hypot(p.x - goal[0], p.y - goal[1]) < 0.15), None)
+    return None if k is None else k * DT
+
+
+def test_rpp_alone_stalls_at_a_tight_corner() -> None:
+    poses, _, blocked = _drive(AROUND, BOX, Pose2(), 25.0, fallback=None)
+    assert _arrival(poses, (6.0, 0.0)) is None and blocked > 100
+
+
+@pytest.mark.parametrize(("name", "params"), [("rpp", {}), ("dwb", {})])
+def test_dwb_and_rpp_with_fallback_round_the_corner_without_touching(name: str, params: dict[str, object]) -> None:
+    poses, cmds, blocked = _drive(AROUND, BOX, Pose2(), 25.0, name=name, **params)
+    t = _arrival(poses, (6.0, 0.0))
+    assert t is not None and t < 20.0 and blocked == 0
+    xy = np.array([[p.x, p.y] for p in poses])
+    assert point_rect_distance(xy, BOX).min() >= BASE_RADIUS
+    assert max(c.v for c in cmds) <= NAV_MAX_V + 1e-9
+
+
+def test_dwb_never_drives_into_a_wall_across_its_path() -> None:
+    wall = np.array([[2.0, -3.0, 2.1, 3.0]])  # the path runs through it and nothing else knows
+    poses, cmds, blocked = _drive(np.array([[0.0, 0.0], [6.0, 0.0]]), wall, Pose2(), 15.0, name="dwb")
+    xy = np.array([[p.x, p.y] for p in poses])
+    assert point_rect_distance(xy, wall).min() >= BASE_RADIUS
+    assert max(c.v for c in cmds) > 0.45  # it did drive at speed towards it first
+
+
+def test_dwb_commands_respect_the_acceleration_limits() -> None:
+    path = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 3.0]])
+    poses, cmds, _ = _drive(path, np.zeros((0, 4)), Pose2(), 25.0, name="dwb")
+    assert math.hypot(poses[-1].x - 3.0, poses[-1].y - 3.0) < 0.2
+    v = np.array([c.v for c in cmds])
+    # The window spans max(dt, 0.1 s) at 1 m/s², so no step in v exceeds 0.1 m/s.
+    assert np.abs(np.diff(v)).max() <= 1.0 * 0.1 + 1e-9 and v.max() <= NAV_MAX_V + 1e-9
+
+
+def test_rollout_and_scan_clearance_match_geometry() -> None:
+    from homing.navigation.dwb import rollout, scan_clearance
+
+    targets = np.full((1, 10), 0.5)
+    poses, twists = rollout(0.0, 0.0, targets, np.zeros((1, 10)), 1.0, 1.0, 3.2, 0.1)
+    assert twists[0, :, 0] == pytest.approx(np.minimum(0.1 * np.arange(1, 11), 0.5))
+    assert poses[0, -1, 0] == pytest.approx(0.1 * twists[0, :, 0].sum())
+    traj = np.zeros((2, 5, 3))
+    traj[0, :, 0] = np.linspace(0.1, 0.5, 5)  # forward towards a point at 0.6 m: touches at 0.41 m
+    traj[1, :, 0] = -np.linspace(0.1, 0.5, 5)  # backwards: away from it and from one inside the disc
+    hit, gap = scan_clearance(traj, np.array([[0.6, 0.0], [0.1, 0.0]]), 0.19)
+    assert hit.tolist() == [True, False]

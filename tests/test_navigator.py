@@ -59,10 +59,16 @@ def _navigate(nav: Navigator, goal: Pose2, start: Pose2, seconds: float, rects: 
     return status, trail, fb
 
 
-@pytest.mark.parametrize("planner", ["fmm", "astar"])
-def test_navigates_the_maze_without_touching(planner: str) -> None:
+@pytest.mark.parametrize(("planner", "controller", "params"), [
+    ("fmm", "rpp", {}), ("astar", "rpp", {}),
+    # the slow in-place turn that once ended in CollisionAhead here
+    pytest.param("fmm", "rpp", {"rotate_omega": 1.0}, marks=pytest.mark.slow),
+    pytest.param("fmm", "dwb", {}, marks=pytest.mark.slow),
+])
+def test_navigates_the_maze_without_touching(planner: str, controller: str, params: dict[str, float]) -> None:
     goal = Pose2(MAZE_GOAL[0], MAZE_GOAL[1], math.pi / 2)
-    status, trail, fb = _navigate(Navigator(planner=planner), goal, Pose2(*MAZE_START, 0.0), 120.0)
+    nav = Navigator(planner=planner, controller=controller, controller_params=params)
+    status, trail, fb = _navigate(nav, goal, Pose2(*MAZE_START, 0.0), 120.0)
     assert status is NavStatus.SUCCEEDED, fb.message
     end = trail[-1]
     assert math.hypot(end.x - goal.x, end.y - goal.y) <= 0.15 + 0.05
@@ -72,10 +78,12 @@ def test_navigates_the_maze_without_touching(planner: str) -> None:
     assert fb.replans >= 2  # it replanned on the way
 
 
-def test_goes_around_an_obstacle_the_map_does_not_have() -> None:
+@pytest.mark.parametrize("controller", ["rpp", "dwb"])
+def test_goes_around_an_obstacle_the_map_does_not_have(controller: str) -> None:
     box = np.array([[4.6, 5.0, 5.4, 5.6]])  # in the corridor between walls 1 and 2, only in the scan
     world = np.vstack([MAZE, box])
-    status, trail, fb = _navigate(Navigator(), Pose2(5.0, 8.0, 0.0), Pose2(5.0, 3.5, math.pi / 2), 90.0,
+    status, trail, fb = _navigate(Navigator(controller=controller), Pose2(5.0, 8.0, 0.0),
+                                  Pose2(5.0, 3.5, math.pi / 2), 90.0,
                                   rects=world, map_rects=MAZE)
     assert status is NavStatus.SUCCEEDED, fb.message
     xy = np.array([[p.x, p.y] for p in trail])
@@ -91,3 +99,32 @@ def test_cancel_stops_at_once() -> None:
     nav = Navigator()
     status, trail, _ = _navigate(nav, Pose2(*MAZE_GOAL), Pose2(*MAZE_START), 10.0, cancel_at=2.0)
     assert status is NavStatus.CANCELLED and len(trail) == int(2.0 / DT) + 1
+
+
+def test_turning_on_the_spot_counts_as_progress_only_a_few_times() -> None:
+    nav = Navigator()
+    # Standing still: no progress after PROGRESS_TIME.
+    assert not nav._no_progress(0.0, Pose2()) and not nav._no_progress(10.0, Pose2())
+    assert nav._no_progress(10.1, Pose2())
+    # Turning at 0.5 rad/s on the spot: each quarter turn (π s) buys time, PROGRESS_TURNS times only.
+    nav = Navigator()
+    t, failed_at = 0.0, None
+    while t < 60.0 and failed_at is None:
+        if nav._no_progress(t, Pose2(0.0, 0.0, 0.5 * t)):
+            failed_at = t
+        t += 0.1
+    assert failed_at is not None
+    assert 10.0 + 2 * (math.pi / 2) / 0.5 - 0.2 <= failed_at <= 10.0 + 2 * (math.pi / 2) / 0.5 + 0.3
+
+
+def test_a_map_correction_replans_at_once() -> None:
+    grid = MapData(rasterise(MAZE, (10.0, 10.0), RES), RES, (0.0, 0.0, 0.0))
+    nav = Navigator()
+    nav.set_goal(Pose2(*MAZE_GOAL))
+    pose = Pose2(*MAZE_START, math.pi / 2)
+    replans = []
+    for k, m2o in enumerate([Pose2(), Pose2(), Pose2(0.01, 0.0, 0.0), Pose2(0.2, 0.0, 0.0), Pose2(0.2, 0.0, 0.0)]):
+        t = 0.1 * k  # well inside the 1 s replanning period
+        nav.step(_obs(t, pose, Twist2(), pose, t, MAZE), grid, m2o.compose(pose), m2o)
+        replans.append(nav.feedback.replans)
+    assert replans == [1, 1, 1, 2, 2]  # a 1 cm correction is noise; 20 cm moves the robot against the map
