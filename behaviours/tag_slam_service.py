@@ -1,7 +1,8 @@
 """The ``tag_slam`` service: AprilTag sightings and odometry into online landmark SLAM, every tick.
 
 Glue only (ARCHITECTURE.md, services): on each observation it detects tags
-in a *new* camera image (:mod:`homing.perception.apriltag`), feeds odometry,
+in a *new* camera image (:mod:`homing.perception.apriltag`), takes their
+headings from the wall behind them (:mod:`homing.perception.tag_wall`), feeds odometry,
 the latest scan and the sightings to :class:`homing.mapping.landmark_slam.LandmarkSlam`,
 and writes the results:
 
@@ -60,8 +61,10 @@ class TagSlamService:
                  resolution: float = 0.05) -> None:
         from homing.mapping.landmark_slam import LandmarkSlam, SlamConfig
         from homing.perception.apriltag import TagDetector, TagFilter
+        from homing.perception.tag_wall import TagPerception
 
         self.detector = TagDetector(tag_size=tag_size, filt=TagFilter(max_range=max_range))
+        self.perception = TagPerception(self.detector)
         self.slam = LandmarkSlam(SlamConfig(
             keyframe_distance=keyframe_distance, keyframe_angle=keyframe_angle, robust=robust,
             anchor_tag=None if dock_tag < 0 else dock_tag,
@@ -69,7 +72,6 @@ class TagSlamService:
         self.resolution = resolution
         self.bb: Any = None
         self.robot: RobotAdapter | None = None
-        self._last_image = -1.0
         self._grid: Any = None
         self._drawn: list[Pose2] = []  # pose each keyframe's scan was drawn at
         self._rebuild: tuple[Any, list[Pose2], int] | None = None
@@ -84,10 +86,7 @@ class TagSlamService:
 
     def update(self, obs: Observation) -> None:
         """Detect, update SLAM and write the blackboard (bounded work: one iSAM2 update per keyframe)."""
-        tags = []
-        if obs.image is not None and obs.image.stamp > self._last_image:
-            self._last_image = obs.image.stamp
-            tags = self.detector.detect(obs.image)
+        tags = self.perception.measure(obs)
         added = self.slam.update(obs.stamp, obs.odom.pose, obs.scan, tags)
         if added:
             self._draw_latest()

@@ -5,15 +5,24 @@ keyframe poses ``x_i`` (Pose2 in ``map``) and tag landmarks ``l_id`` (Pose2:
 centre and face heading in ``map``). Factors:
 
 - a prior on the first keyframe (``map`` is where the robot started);
-- odometry between consecutive keyframes, its noise from the odometry
-  motion model (Thrun et al., *Probabilistic Robotics*, §5.4): translation
-  noise grows with distance and turn, rotation noise with turn and distance;
+- odometry between consecutive keyframes, its covariance from the robot's
+  documented odometry model (:mod:`homing.robot.turtlebot`, stated in full in
+  :mod:`homing.sim.odometry`): encoder slip along the path, gyro heading
+  noise, bias and scale error, and the lateral error the heading error
+  integrates into — not hand-tuned α's;
 - one relative-pose factor per tag per keyframe (the tag seen from the
   keyframe), with the detector's covariance and a robust M-estimator
   (Huber or Cauchy), so that a wrong association is down-weighted instead
-  of bending the map;
+  of bending the map. A heading measured from the tag's own corners is
+  weak and sometimes mirrored, so it is given ``TAG_YAW_SIGMA`` and the
+  factor acts as a position (range-bearing) factor; a heading taken from the
+  wall behind the tag (:mod:`homing.perception.tag_wall`) keeps its own σ;
 - a tight prior on the dock's tag when it is first seen: the map's anchor,
-  which every return to the dock re-observes.
+  which every return to the dock re-observes;
+- optionally, the scan-matched motion between consecutive keyframes (the
+  grid SLAM's corrected pose, ``matched``) as a second, robust between
+  factor: the lidar keeps the chain straight between tags, the tags close
+  the loops the scan matcher cannot, and a failed match is down-weighted.
 
 Association is by tag id. A new keyframe starts every ``keyframe_distance``
 metres or ``keyframe_angle`` radians of odometry; tag sightings in between
@@ -42,15 +51,23 @@ import gtsam
 import numpy as np
 from homing.perception.apriltag import TagMeasurement
 from homing.robot.frames import wrap_angle
+from homing.robot.turtlebot import (
+    GYRO_BIAS_SIGMA,
+    GYRO_NOISE,
+    GYRO_SCALE_SIGMA,
+    ODOM_K_S0,
+    ODOM_K_SV,
+    ODOM_K_SW,
+)
 from homing.robot.types import Pose2, Scan
 
 KEYFRAME_DISTANCE = 0.25  # [m] odometry travelled before a new keyframe
 KEYFRAME_ANGLE = 0.35  # [rad] (≈ 20°) odometry turn before a new keyframe
-ODOM_TRANS_PER_M = 0.03  # [m/m] translation σ per metre driven (α3)
-ODOM_TRANS_PER_RAD = 0.01  # [m/rad] translation σ per radian turned (α4)
-ODOM_ROT_PER_RAD = 0.03  # [rad/rad] rotation σ per radian turned (α1)
-ODOM_ROT_PER_M = 0.02  # [rad/m] rotation σ per metre driven (α2)
-ODOM_SIGMA_MIN = (0.002, 0.002, 0.001)  # [m, m, rad] floor so a standstill factor stays well-posed
+ODOM_SLIP_MARGIN = 4.0  # encoder variance × this: SLAM does not know where the floor is slippery
+GYRO_BIAS_HORIZON = 120.0  # [s] the gyro bias, a constant, spread as white noise that matches its drift over this span
+ODOM_SIGMA_MIN = (0.002, 0.002, 0.0005)  # [m, m, rad] floor so a standstill factor stays well-posed
+SCAN_MATCH_SIGMA = (0.03, 0.03, 0.01)  # [m, m, rad] scan-matched motion between keyframes (5 cm cells, ≈ 1/2 cell)
+TAG_YAW_SIGMA = 0.5  # [rad] heading σ of a tag measured from its corners alone (weak, sometimes mirrored)
 FIRST_POSE_SIGMA = (1e-3, 1e-3, 1e-3)  # [m, m, rad] the map frame is the start pose
 ANCHOR_SIGMA = (0.005, 0.005, 0.2)  # [m, m, rad] the dock's tag holds the map's origin; its yaw is a sighting's
 ROBUST_K = {"huber": 1.345, "cauchy": 2.3849}  # 95 % efficiency tuning constants
@@ -87,10 +104,9 @@ class SlamConfig:
 
     keyframe_distance: float = KEYFRAME_DISTANCE  # [m]
     keyframe_angle: float = KEYFRAME_ANGLE  # [rad]
-    odom_trans_per_m: float = ODOM_TRANS_PER_M
-    odom_trans_per_rad: float = ODOM_TRANS_PER_RAD
-    odom_rot_per_rad: float = ODOM_ROT_PER_RAD
-    odom_rot_per_m: float = ODOM_ROT_PER_M
+    odom_slip_margin: float = ODOM_SLIP_MARGIN
+    gyro_bias_horizon: float = GYRO_BIAS_HORIZON  # [s]
+    tag_yaw_sigma: float = TAG_YAW_SIGMA  # [rad]
     robust: str = "cauchy"
     anchor_tag: int | None = 0
     relinearize_threshold: float = RELINEARIZE_THRESHOLD
@@ -110,6 +126,7 @@ class Keyframe:
     odom: Pose2
     scan: Scan | None = None
     scan_offset: Pose2 = field(default_factory=Pose2)
+    matched: Pose2 | None = None  # the scan-matched pose at the keyframe (grid SLAM's frame), if given
 
 
 @dataclass
@@ -124,15 +141,29 @@ class ScanSink(Protocol):
     def integrate(self, scan: Scan, pose: Pose2) -> None: ...
 
 
-def odometry_sigmas(delta: Pose2, cfg: SlamConfig) -> np.ndarray:
-    """(3,) σ of (x, y, theta) [m, m, rad] of an odometry increment ``delta`` (motion model α1..α4)."""
-    d = math.hypot(delta.x, delta.y)
-    turn = abs(delta.theta)
-    s_t = cfg.odom_trans_per_m * d + cfg.odom_trans_per_rad * turn
-    s_r = cfg.odom_rot_per_rad * turn + cfg.odom_rot_per_m * d
-    return np.array([
-        math.hypot(s_t, ODOM_SIGMA_MIN[0]), math.hypot(s_t, ODOM_SIGMA_MIN[1]), math.hypot(s_r, ODOM_SIGMA_MIN[2]),
+def odometry_covariance(delta: Pose2, path: float, turn: float, dt: float, cfg: SlamConfig) -> np.ndarray:
+    """(3, 3) covariance of (x, y, θ) [m², rad²] of an odometry increment ``delta`` in its start frame.
+
+    ``path`` [m] and ``turn`` [rad] are the distance and the absolute turn
+    the odometry integrated on the way, ``dt`` [s] its duration. Encoder slip
+    (× ``odom_slip_margin``) lies along the chord; the gyro's heading
+    variance is its white noise over ``dt``, its scale error over ``turn``
+    and its bias (a constant, see ``GYRO_BIAS_HORIZON``); a heading random
+    walk over the path moves the end sideways (var θ·path²/3, correlated
+    with θ by path/2).
+    """
+    dt = max(dt, 0.0)
+    v = path / dt if dt > 0 else 0.0
+    var_s = cfg.odom_slip_margin * ((ODOM_K_S0 + ODOM_K_SV * v) * path + ODOM_K_SW * turn)
+    var_th = GYRO_NOISE**2 * dt + GYRO_BIAS_SIGMA**2 * dt * cfg.gyro_bias_horizon + (GYRO_SCALE_SIGMA * turn) ** 2
+    chord = math.atan2(delta.y, delta.x) if math.hypot(delta.x, delta.y) > 1e-6 else 0.0
+    local = np.array([
+        [var_s, 0.0, 0.0],
+        [0.0, var_th * path**2 / 3.0, var_th * path / 2.0],
+        [0.0, var_th * path / 2.0, var_th],
     ])
+    cov = rotate_covariance(local, -chord)
+    return cov + np.diag(np.square(ODOM_SIGMA_MIN))
 
 
 def rotate_covariance(cov: np.ndarray, angle: float) -> np.ndarray:
@@ -187,6 +218,11 @@ class LandmarkSlam:
         self.n_tag_factors = 0
         self._pending: dict[int, _Sighting] = {}
         self._history: deque[tuple[float, Pose2]] = deque()
+        self._path = 0.0  # [m] odometry path since the last keyframe
+        self._match_noise = gtsam.noiseModel.Robust.Create(
+            gtsam.noiseModel.mEstimator.Cauchy.Create(ROBUST_K["cauchy"]),
+            gtsam.noiseModel.Diagonal.Sigmas(np.array(SCAN_MATCH_SIGMA)))
+        self._turn = 0.0  # [rad] absolute odometry turn since the last keyframe
         self._latest_map_pose = Pose2()
         self._landmarks: dict[int, Pose2] = {}
         self._map_to_odom = Pose2()
@@ -194,24 +230,31 @@ class LandmarkSlam:
     # -- input -------------------------------------------------------------
 
     def update(self, stamp: float, odom: Pose2, scan: Scan | None = None,
-               tags: Iterable[TagMeasurement] = ()) -> bool:
+               tags: Iterable[TagMeasurement] = (), matched: Pose2 | None = None) -> bool:
         """Take one tick's odometry [odom frame], latest scan and new tag sightings; True if a keyframe was added.
 
         Tag measurements are in base_link at their own stamps (the image's).
-        Pass each sighting once (only when the image is new).
+        Pass each sighting once (only when the image is new). ``matched`` is
+        the scan-matched pose of this tick in the grid SLAM's own frame (its
+        motion between keyframes becomes a robust factor), or None.
         """
+        if self._history:
+            prev = self._history[-1][1]
+            self._path += math.hypot(odom.x - prev.x, odom.y - prev.y)
+            self._turn += abs(wrap_angle(odom.theta - prev.theta))
         self._history.append((float(stamp), odom))
         while self._history and self._history[0][0] < stamp - ODOM_HISTORY:
             self._history.popleft()
         added = False
         if not self.keyframes:
             self._start(stamp, odom, scan)
+            self.keyframes[0].matched = matched
             added = True
         else:
             last = self.keyframes[-1]
             delta = last.odom.between(odom)
             if math.hypot(delta.x, delta.y) >= self.cfg.keyframe_distance or abs(delta.theta) >= self.cfg.keyframe_angle:
-                self._commit(Keyframe(len(self.keyframes), float(stamp), odom))
+                self._commit(Keyframe(len(self.keyframes), float(stamp), odom, matched=matched))
                 added = True
         if added:
             self._attach_scan(scan)
@@ -245,9 +288,14 @@ class LandmarkSlam:
         kf = self.keyframes[-1]
         at_image = kf.odom.between(interpolate_pose(self._history, m.stamp))
         rel = at_image.compose(m.pose)
-        cov = rotate_covariance(np.asarray(m.covariance, float), -at_image.theta)
+        meas = np.array(m.covariance, dtype=float, copy=True)
+        if m.yaw_source != "wall" and meas[2, 2] < self.cfg.tag_yaw_sigma**2:
+            meas[2, :2] = meas[:2, 2] = 0.0
+            meas[2, 2] = self.cfg.tag_yaw_sigma**2
+        cov = rotate_covariance(meas, -at_image.theta)
         # The odometry between keyframe and image adds to the sighting's noise.
-        cov = cov + np.diag(odometry_sigmas(at_image, self.cfg) ** 2)
+        d = math.hypot(at_image.x, at_image.y)
+        cov = cov + odometry_covariance(at_image, d, abs(at_image.theta), abs(m.stamp - kf.stamp), self.cfg)
         old = self._pending.get(m.tag_id)
         if old is None or np.trace(cov[:2, :2]) < np.trace(old.cov[:2, :2]):
             self._pending[m.tag_id] = _Sighting(rel, cov)
@@ -283,8 +331,13 @@ class LandmarkSlam:
         self._pending.clear()
         if new is not None:
             delta = last.odom.between(new.odom)
-            noise = gtsam.noiseModel.Diagonal.Sigmas(odometry_sigmas(delta, self.cfg))
+            cov = odometry_covariance(delta, self._path, self._turn, new.stamp - last.stamp, self.cfg)
+            noise = gtsam.noiseModel.Gaussian.Covariance(cov)
+            self._path = self._turn = 0.0
             graph.add(gtsam.BetweenFactorPose2(X(last.index), X(new.index), to_gtsam(delta), noise))
+            if last.matched is not None and new.matched is not None:
+                graph.add(gtsam.BetweenFactorPose2(X(last.index), X(new.index), to_gtsam(last.matched.between(new.matched)),
+                                                   self._match_noise))
             values.insert(X(new.index), to_gtsam(last_map.compose(delta)))
             self.keyframes.append(new)
         self._run(graph, values)
@@ -348,12 +401,13 @@ class SyntheticRun:
 
 def synthetic_loop(seed: int = 0, laps: int = 2, size: tuple[float, float] = (6.0, 4.0),
                    speed: float = 0.3, dt: float = 0.1, camera_period: float = 0.3,
-                   slip: float = 0.04, yaw_bias: float = 0.01, tag_noise: float = 1.0) -> SyntheticRun:
+                   slip: float = 0.04, yaw_bias: float = 0.002, tag_noise: float = 1.0,
+                   yaw_noise: float = 0.002) -> SyntheticRun:
     """Drive ``laps`` laps of a rectangle (``size`` [m]) past tags on the walls around it.
 
     Odometry integrates the true motion with multiplicative noise ``slip``
-    and a yaw-rate bias ``yaw_bias`` [rad/s per rad/s] (so it drifts like a
-    real base); ``tag_noise`` scales the sightings' noise. Tags within 3 m, ±29° and 60° of view are measured with the
+    and a gyro scale error ``yaw_bias`` [rad/s per rad/s] (so it drifts like a
+    real base) plus ``yaw_noise`` [rad/m] of heading noise per metre driven; ``tag_noise`` scales the sightings' noise. Tags within 3 m, ±29° and 60° of view are measured with the
     detector's covariance model at 320 px and noise drawn from it. Tag 0
     faces the start pose, like the dock's tag.
     """
@@ -398,7 +452,7 @@ def synthetic_loop(seed: int = 0, laps: int = 2, size: tuple[float, float] = (6.
                     v, om = min(speed, dist / dt), float(np.clip(err / dt, -0.8, 0.8))
                 truth = truth.compose(Pose2(v * dt, 0.0, om * dt))
                 nv = v * (1.0 + slip * rng.normal())
-                nom = om * (1.0 + yaw_bias + slip * rng.normal()) + 0.002 * v * rng.normal()
+                nom = om * (1.0 + yaw_bias + slip * rng.normal()) + yaw_noise * v * rng.normal()
                 odom = odom.compose(Pose2(nv * dt, 0.0, nom * dt))
                 t += dt
                 seen: list[TagMeasurement] = []

@@ -86,7 +86,7 @@ SCHEMA: dict[str, dict[str, str]] = {
     "tags": {
         "t": "stamp of the tick (observation) the sightings were fed to SLAM at [s]",
         "m": "list of [id, image stamp s, x m, y m, theta rad (face heading), cov 9 (x,y,theta row-major, base_link),"
-             " range m, bearing rad, view_angle rad, decision_margin, hamming, height m]",
+             " range m, bearing rad, view_angle rad, decision_margin, hamming, height m, yaw source ('tag' or 'wall')]",
     },
     "cmd": {"t": "stamp [s]", "v": "forward speed sent [m/s]", "w": "yaw rate sent [rad/s]"},
     "status": {"t": "stamp [s]", "node": "tree node name", "s": "new status (SUCCESS/FAILURE/RUNNING/INVALID)"},
@@ -114,7 +114,7 @@ def _unbat(a: list[Any] | None) -> BatteryState | None:
 def encode_tag(m: TagMeasurement) -> list[Any]:
     """A :class:`TagMeasurement` as the JSON list of a ``tags`` record (pose and covariance only)."""
     return [m.tag_id, m.stamp, m.pose.x, m.pose.y, m.pose.theta, [float(v) for v in np.ravel(m.covariance)],
-            m.range_m, m.bearing, m.view_angle, m.decision_margin, m.hamming, m.height]
+            m.range_m, m.bearing, m.view_angle, m.decision_margin, m.hamming, m.height, m.yaw_source]
 
 
 def decode_tag(a: Sequence[Any]) -> TagMeasurement:
@@ -123,7 +123,8 @@ def decode_tag(a: Sequence[Any]) -> TagMeasurement:
     c, s = math.cos(th), math.sin(th)
     T = np.array([[-s, 0.0, -c, x], [c, 0.0, -s, y], [0.0, -1.0, 0.0, h], [0.0, 0.0, 0.0, 1.0]])
     return TagMeasurement(int(a[0]), a[1], Pose2(x, y, th), np.array(a[5], dtype=float).reshape(3, 3),
-                          a[6], a[7], a[8], a[9], int(a[10]), h, T, np.zeros((4, 2)))
+                          a[6], a[7], a[8], a[9], int(a[10]), h, T, np.zeros((4, 2)),
+                          str(a[12]) if len(a) > 12 else "tag")
 
 
 class Recorder:

@@ -12,6 +12,12 @@ Every status change of every node is reported with the adapter time to
 ``on_change``: changes the tick walks through (a recovery node's child
 failing and starting again inside one tick) and halts it does not (a
 branch preempted by a higher priority).
+
+With a ``recorder`` (:class:`homing.missions.runlog.Recorder`) every tick is
+logged in the order ``homing replay`` needs to reproduce SLAM: the
+observation, then the tag sightings the services took at it
+(``/perception/tags``), then the command; status changes as they happen,
+and the simulator's truth (from ``truth``, evaluation only) apart.
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from homing.missions.compiler import CompiledMission
 from homing.robot import Observation, RobotAdapter, Twist2
 from py_trees.common import Access, Status
 
+TAGS_KEY = "/perception/tags"  # the sightings the tag_slam service took this tick (logged for replay)
 UNTIL_SLACK = 1e-6  # [s] float steps of 1/rate must not cost an extra tick at the limit
 STOP_REASONS = ("success", "failure", "time_limit", "interrupted")
 
@@ -90,12 +97,16 @@ class Runner:
     observation: Observation | None = None
     services: list[Service] = field(default_factory=list)
     changes: int = 0
+    recorder: Any = None  # a homing.missions.runlog.Recorder (or None: nothing is logged)
+    truth: Callable[[], Any] | None = None  # the simulator's true pose, for the log only
 
     def __post_init__(self) -> None:
         self.tree = py_trees.trees.BehaviourTree(self.mission.root)
         self.bb = py_trees.blackboard.Client(name="runner")
         for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state"):
             self.bb.register_key(key=key, access=Access.WRITE)
+        if TAGS_KEY not in self.bb.remappings:
+            self.bb.register_key(key=TAGS_KEY, access=Access.READ)
         for key in self.mission.source.view_keys:
             if key not in self.bb.remappings:
                 self.bb.register_key(key=key, access=Access.READ)
@@ -132,13 +143,22 @@ class Runner:
         self.now = float(obs.stamp)
         self.bb.set("/robot/observation", obs, overwrite=True)
         self.bb.set("/robot/time", self.now, overwrite=True)
+        rec = self.recorder
+        if rec is not None:
+            rec.record_observation(obs)
+            if self.truth is not None:
+                rec.record_truth(self.truth(), obs.stamp)
         for service in self.services:
             service.update(obs)
+        if rec is not None:
+            rec.record_tags(obs.stamp, self.read(TAGS_KEY) or [])
         self.bb.set("/cmd_vel", None, overwrite=True)
         self.tree.tick()
         self._sweep()
         cmd = self.bb.get("/cmd_vel")
         self.last_command = self.robot.command(cmd.v, cmd.omega) if isinstance(cmd, Twist2) else self.robot.command(0.0, 0.0)
+        if rec is not None:
+            rec.record_command(obs.stamp, self.last_command)
         self.ticks += 1
         return self.mission.root.status
 
@@ -195,6 +215,8 @@ class Runner:
         if node.status != old:
             self._status[node.id] = node.status
             self.changes += 1
+            if self.recorder is not None:
+                self.recorder.record_status(node.name, node.status.value, self.now)
             if self.on_change is not None:
                 self.on_change(StatusChange(self.now, node.name, old, node.status))
 

@@ -51,6 +51,8 @@ class TagMeasurement:
     ``range_m`` and ``bearing`` [rad] locate the centre from base_link's
     origin; ``view_angle`` [rad] is between the tag's normal and the line of
     sight (0 = seen head-on). ``base_from_tag`` is the full 4 × 4 pose.
+    ``yaw_source`` says where theta came from: the tag's corners (weak,
+    see :mod:`homing.perception.tag_wall`) or the wall it hangs on.
     """
 
     tag_id: int
@@ -65,6 +67,7 @@ class TagMeasurement:
     height: float
     base_from_tag: np.ndarray = field(repr=False)
     corners: np.ndarray = field(repr=False)
+    yaw_source: str = "tag"  # "tag": from the corners; "wall": from the lidar (homing.perception.tag_wall)
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,16 @@ LIDAR_RATE = 5.5  # [Hz]
 LIDAR_RANGE_MIN = 0.15  # [m]
 LIDAR_RANGE_MAX = 6.0  # [m]
 
+# Kobuki odometry (kobuki_node with use_imu_heading): heading from the factory-calibrated
+# gyro, distance from the wheel encoders. Documented here so that the simulator
+# and the estimators assume the same model (homing.sim.odometry states it in full).
+ODOM_K_S0 = 1.0e-4  # [m] encoder along-track variance per metre travelled
+ODOM_K_SV = 5.0e-4  # [s] … extra per metre, per m/s of speed (slip grows with speed)
+ODOM_K_SW = 1.0e-5  # [m²/rad] along-track variance per radian turned (scrub)
+GYRO_NOISE = 5.0e-4  # [rad/√s] angle random walk of the integrated heading
+GYRO_BIAS_SIGMA = 3.0e-5  # [rad/s] residual rate bias after factory calibration (≈ 0.1°/min), per power-up
+GYRO_SCALE_SIGMA = 2.0e-3  # residual scale-factor error (0.2 %, ≈ 0.7° per full turn), per power-up
+
 # Asus Xtion RGB
 CAMERA_HFOV = math.radians(58.0)  # [rad]
 CAMERA_VFOV = math.radians(45.0)  # [rad]

@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from homing.robot.frames import wrap_angle
 from homing.robot.turtlebot import LIDAR_RATE, RobotLimits, bumper_sector
 from homing.robot.types import Bumpers, CameraImage, Observation, Odometry, Pose2, Scan, Twist2
 from homing.sim.battery import Battery
@@ -166,12 +167,14 @@ class SimRobot:
         self._apply_faults(t, h)
         v, w = self._cmd.v, self._cmd.omega
         keep = 1.0 - max((f.amount for f in self.faults if f.name == "wheel_slip" and f.active(t)), default=0.0)
+        before = self._pose  # after a kidnap: the gyro feels real turns only
         pose = arc(self._pose, v * h * keep, w * h * keep)
         pose, sides = self._resolve(pose, v * keep)
         pose = self.dock.funnel(pose, v, h)
         self._pose = pose
         slip = max((p.slip for p in self.world.patches if p.contains(pose.x, pose.y)), default=1.0)
-        self.odometry.update(v * h, w * h, h, slip)
+        # the encoders count the commanded wheel motion; the gyro feels the body's real turn (the dock's funnel too)
+        self.odometry.update(v * h, w * h, h, slip, turned=wrap_angle(pose.theta - before.theta))
         on_dock = self.dock.contacts_closed(pose)
         self.base_battery.update(h, v, w, on_dock)
         self.computer_battery.update(h, v, w, on_dock)

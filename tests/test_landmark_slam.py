@@ -50,7 +50,7 @@ def loop_slam(loop: SyntheticRun) -> LandmarkSlam:
 
 
 def test_noise_free_drive_recovers_the_exact_map():
-    run = synthetic_loop(seed=1, slip=0.0, yaw_bias=0.0, tag_noise=0.0)
+    run = synthetic_loop(seed=1, slip=0.0, yaw_bias=0.0, tag_noise=0.0, yaw_noise=0.0)
     slam = _run(run)
     est = slam.landmarks()
     assert set(est) == set(run.tags)
@@ -71,7 +71,7 @@ def test_loop_recovers_known_landmarks_within_the_noise(loop, loop_slam):
             placed.setdefault(m.tag_id, []).append(np.array([q.x, q.y]))
     odom_err = _best_fit_errors({i: np.mean(v, axis=0) for i, v in placed.items()}, loop.tags)
     assert slam_err.mean() < 0.03
-    assert slam_err.mean() < 0.5 * odom_err.mean()
+    assert slam_err.mean() < 0.6 * odom_err.mean()  # odometry with a gyro drifts gently (0.2 % scale error)
     # Each tag lies within 3 σ of its own marginal (the graph's uncertainty is honest).
     for tag_id, p in loop.tags.items():
         sigma = math.sqrt(np.trace(loop_slam.landmark_covariance(tag_id)[:2, :2]))

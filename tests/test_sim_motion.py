@@ -1,4 +1,4 @@
-"""Commanded motion moves the true pose by v·t; odometry's errors follow the documented slip model."""
+"""Commanded motion moves the true pose by v·t; odometry's errors follow the documented model (encoder slip, gyro heading)."""
 
 from __future__ import annotations
 
@@ -70,40 +70,59 @@ def _ratio_ok(samples: np.ndarray, var: float) -> bool:
     return 0.5 < float(np.mean(samples**2)) / var < 1.6
 
 
+def _heading_var(t: float, phi: float = 0.0) -> float:
+    """Variance over power-ups of the gyro heading after ``t`` [s] turning through ``phi`` [rad]."""
+    return om.GYRO_NOISE**2 * t + (om.GYRO_BIAS_SIGMA * t) ** 2 + (om.GYRO_SCALE_SIGMA * phi) ** 2
+
+
 @pytest.mark.slow
-def test_straight_odometry_errors_match_slip_model(room) -> None:
+def test_straight_odometry_errors_match_the_model(room) -> None:
     v, s = 0.4, 4.0
-    along, lateral, heading = _straight_errors(room, v, s / v)
+    t = s / v
+    along, lateral, heading = _straight_errors(room, v, t)
     assert _ratio_ok(along, (om.K_S0 + om.K_SV * v) * s)
-    assert _ratio_ok(heading, om.K_TS * s)
-    assert _ratio_ok(lateral, om.K_TS * s**3 / 3)  # a heading random walk integrated along the path
+    assert _ratio_ok(heading, _heading_var(t))
+    # the heading error integrated along the path: white noise (t³/3) and bias (t²/2)² terms
+    assert _ratio_ok(lateral, v**2 * (om.GYRO_NOISE**2 * t**3 / 3 + (om.GYRO_BIAS_SIGMA * t**2 / 2) ** 2))
     assert abs(along.mean()) < 4 * math.sqrt((om.K_S0 + om.K_SV * v) * s / RUNS)
 
 
 @pytest.mark.slow
-def test_turning_odometry_errors_match_slip_model(room) -> None:
+def test_turning_heading_errors_match_the_gyro_model(room) -> None:
     w, phi = 2 * math.pi / 6.0, 2 * math.pi  # one full turn in 6 s
     errs = []
     for seed in range(RUNS):
         truth, odom = _drive(room, seed, Pose2(4.0, 2.0, 0.0), 0.0, w, phi / w)
         assert truth.theta == pytest.approx(0.0, abs=1e-9)
         errs.append(math.remainder(odom.theta - phi, 2 * math.pi))
-    assert _ratio_ok(np.array(errs), (om.K_T0 + om.K_TW * w) * phi)
+    assert _ratio_ok(np.array(errs), _heading_var(phi / w, phi))
 
 
 @pytest.mark.slow
-def test_low_friction_patch_multiplies_slip_variance(room) -> None:
+def test_low_friction_patch_multiplies_encoder_slip_not_gyro_heading(room) -> None:
     slippery = replace(room, patches=(Patch(0.0, 0.0, W, H, slip=4.0),))
     v, s = 0.4, 4.0
     along, _, heading = _straight_errors(slippery, v, s / v)
     assert _ratio_ok(along, 4.0 * (om.K_S0 + om.K_SV * v) * s)
-    assert _ratio_ok(heading, 4.0 * om.K_TS * s)
+    assert _ratio_ok(heading, _heading_var(s / v))  # the gyro does not feel the floor
 
 
-def test_faster_motion_slips_more() -> None:
+def test_faster_motion_slips_more_and_the_gyro_drifts_with_time() -> None:
     model = om.SlipModel()
     slow = model.variances(0.1, 0.0, 1.0)[0] / 0.1
     fast = model.variances(0.5, 0.0, 1.0)[0] / 0.5
     assert fast > slow  # per metre travelled
-    turning = model.variances(0.0, 1.0, 0.5)[1]
-    assert turning > model.variances(0.0, 1.0, 2.0)[1]  # the same turn, faster
+    # the same turn done slowly takes longer, so the gyro's white noise adds more
+    assert model.variances(0.0, 1.0, 2.0)[1] > model.variances(0.0, 1.0, 0.5)[1]
+
+
+def test_gyro_bias_and_scale_are_drawn_per_power_up_and_repeat_with_the_seed() -> None:
+    a = om.WheelOdometry(np.random.default_rng(7))
+    b = om.WheelOdometry(np.random.default_rng(7))
+    c = om.WheelOdometry(np.random.default_rng(8))
+    assert (a.gyro_bias, a.gyro_scale) == (b.gyro_bias, b.gyro_scale) != (c.gyro_bias, c.gyro_scale)
+    # standing still, the heading drifts by the bias alone (plus white noise)
+    for _ in range(600):
+        a.update(0.0, 0.0, 0.1)
+    assert a.pose.x == 0.0 and a.pose.y == 0.0
+    assert abs(a.pose.theta - 60.0 * a.gyro_bias) < 5 * om.GYRO_NOISE * math.sqrt(60.0)

@@ -35,6 +35,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--rate", type=float, metavar="HZ", help="tick rate (default: the mission's rate)")
     parser.add_argument("--no-view", action="store_true", help="print timestamped status changes, no live view")
     parser.add_argument("--log", metavar="PATH", help="also write every status change to PATH")
+    parser.add_argument(
+        "--record", metavar="RUN",
+        help="write a run log of everything sensed and commanded to RUN (see 'homing replay')",
+    )  # fmt: skip
+    parser.add_argument("--save-map", metavar="PATH", help="save the final /map/grid as a map_server map (PATH.yaml + .pgm)")
     add_set_argument(parser)
     parser.set_defaults(func=run)
 
@@ -60,11 +65,43 @@ def _adapter(args: argparse.Namespace) -> Any:
     return SimRobot(load_world(args.world), seed=args.seed)
 
 
+def _recorder(args: argparse.Namespace, mission: Any, robot: Any) -> Any:
+    """A run-log Recorder for ``--record`` with the run's metadata (None without the option)."""
+    if not args.record:
+        return None
+    from homing.missions.runlog import Recorder
+
+    from homing.errors import UserError
+
+    meta: dict[str, Any] = {"world": args.world, "seed": args.seed, "mission": str(args.mission),
+                            "adapter": args.adapter, "rate": args.rate or mission.rate}
+    for spec, params in mission.services:
+        if spec.name == "tag_slam":
+            meta["tag_slam"] = {k: v for k, v in params.items() if isinstance(v, (int, float, str, bool))}
+    try:
+        return Recorder(args.record, meta)
+    except OSError as err:
+        raise UserError(f"--record: cannot write the run log: {err.strerror}", args.record) from None
+
+
+def _save_map(args: argparse.Namespace, runner: Any) -> None:
+    from homing.mapping.grid import OccupancyGrid
+    from homing.mapping.map_io import save_grid
+
+    from homing.errors import UserError
+
+    grid = runner.read("/map/grid")
+    if not isinstance(grid, OccupancyGrid):
+        raise UserError("--save-map: the mission has no occupancy grid (/map/grid): add a mapping service", args.mission)
+    print(f"map saved: {save_grid(args.save_map, grid)}")
+
+
 def run(args: argparse.Namespace) -> int:
     from homing.missions.commands.check import overrides
     from homing.missions.compiler import compile_mission
     from homing.missions.runner import Runner, StatusChange, parse_duration
     from homing.missions.view import LiveView, PlainLog
+    from py_trees.common import Access
 
     from homing.atomic import atomic_write
     from homing.errors import UserError
@@ -91,8 +128,14 @@ def run(args: argparse.Namespace) -> int:
             plain(change)
 
     robot = _adapter(args)
+    recorder = None
     try:
-        runner = Runner(mission, robot, seed=args.seed, rate=args.rate, until=until, speed=speed, on_change=on_change)
+        recorder = _recorder(args, mission, robot)
+        truth = getattr(robot, "truth_pose", None) if recorder is not None else None
+        runner = Runner(mission, robot, seed=args.seed, rate=args.rate, until=until, speed=speed, on_change=on_change,
+                        recorder=recorder, truth=truth)
+        if args.save_map:
+            runner.bb.register_key(key="/map/grid", access=Access.READ)
         if live:
             with LiveView(mission) as view:
                 runner.on_tick = view.update
@@ -101,7 +144,11 @@ def run(args: argparse.Namespace) -> int:
         else:
             result = runner.run()
     finally:
+        if recorder is not None:
+            recorder.close()
         robot.close()
+    if args.save_map:
+        _save_map(args, runner)
     if args.log:
         atomic_write(args.log, "".join(c.line() + "\n" for c in changes))
     cmd = result.final_command
