@@ -223,11 +223,31 @@ def _services(doc: LocatedDict, path: Path, problems: Problems) -> list[ServiceU
     return out
 
 
+BUNDLED = Path(__file__).resolve().parent  # the missions shipped with homing (explore.yaml, …)
+
+
+def resolve_mission(path: str | Path) -> Path:
+    """A mission file by path, or a bundled mission by bare name (``explore`` → ``explore.yaml``).
+
+    A path that exists always wins, so a user's own ``explore.yaml`` is never
+    shadowed; only a name with no folder and no file of that name falls back
+    to the bundled missions (and their ``examples/``).
+    """
+    given = Path(path)
+    if given.exists() or given.parent != Path("."):
+        return given
+    stem = given.name[:-5] if given.name.endswith(".yaml") else given.name
+    for candidate in (BUNDLED / f"{stem}.yaml", BUNDLED / "examples" / f"{stem}.yaml"):
+        if candidate.is_file():
+            return candidate
+    return given
+
+
 def load_source(path: str | Path, overrides: dict[str, Any] | None = None, problems: Problems | None = None) -> MissionSource:
     """Read ``path`` and its includes. Problems go to ``problems`` (raised at the end if none was given)."""
     own = problems is None
     problems = problems if problems is not None else Problems()
-    main = Path(path)
+    main = resolve_mission(path)
     source = MissionSource(path=main, name=main.stem)
     doc = _read(main, problems, None)
     if doc is not None:

@@ -120,13 +120,9 @@ def test_duplicate_names_and_subtree_parameters(tmp_path: Path) -> None:
     assert len(got) == 3
 
 
-def test_default_services_unregistered_is_a_clear_error(tmp_path: Path) -> None:
-    from homing.behaviours.registry import SERVICES
-
-    if "grid_slam" in SERVICES:
-        pytest.skip("grid_slam is registered now")
-    got = errors(tmp_path, "tree: Stop\n")
-    assert any("unknown service 'grid_slam'" in m and "services: [...]" in m for _, _, m in got)
+def test_unregistered_service_is_a_clear_error(tmp_path: Path) -> None:
+    got = errors(tmp_path, "services: [navigatoin]\ntree: Stop\n")
+    assert any("unknown service 'navigatoin'" in m and "did you mean 'navigation'" in m for _, _, m in got), got
 
 
 def test_parameter_substitution_and_units(tmp_path: Path) -> None:
@@ -199,3 +195,16 @@ def test_random_missions_never_raise(tree: object, extra: dict[str, object]) -> 
     with tempfile.TemporaryDirectory() as tmp:
         path = write(Path(tmp), yaml.safe_dump(doc, allow_unicode=True))
         _assert_clean(Path(tmp), path)
+
+
+def test_bundled_missions_resolve_by_name(tmp_path, monkeypatch) -> None:
+    from homing.missions.loader import BUNDLED, resolve_mission
+
+    monkeypatch.chdir(tmp_path)
+    assert resolve_mission("wander") == BUNDLED / "examples" / "wander.yaml"
+    assert resolve_mission("wander.yaml") == BUNDLED / "examples" / "wander.yaml"
+    # A user's own file of the same name wins over the bundled one.
+    (tmp_path / "wander.yaml").write_text("tree: Succeed\n")
+    assert resolve_mission("wander.yaml") == Path("wander.yaml")
+    # An unknown name stays as given, so the error names what the user typed.
+    assert resolve_mission("nope") == Path("nope")
