@@ -45,7 +45,7 @@ ANGLE_STEP = math.radians(0.5)  # [rad] at the finest correlative level
 LEVELS = 2  # coarse levels above the finest (each halves the resolution)
 MAX_POINTS = 180  # scan end points used by the correlative search (decimated)
 GN_ITERATIONS = 8
-PRIOR_XY = 0.10  # [m] std-dev of the odometry prior in the correlative score
+PRIOR_XY = 0.10  # [m] std-dev of the odometry prior in the correlative score (one-shot matching)
 PRIOR_THETA = math.radians(3.0)  # [rad] same, for heading
 PRIOR_PENALTY = 0.01  # weight of the prior in the correlative score, per point
 GN_ANCHOR_XY = 0.05  # [m] std-dev of the pull towards the correlative optimum in Gauss–Newton
@@ -121,8 +121,10 @@ class CorrelativeMatcher:
         sigma: float = SIGMA,
         min_score: float = MIN_SCORE,
         refine: bool = False,
+        prior_xy: float = PRIOR_XY,
     ) -> None:
         self.window_xy = window_xy
+        self.prior_xy = prior_xy  # [m]
         self.window_theta = window_theta
         self.levels = levels
         self.sigma = sigma
@@ -161,14 +163,16 @@ class CorrelativeMatcher:
         n_a = max(1, int(math.ceil(self.window_theta / a_step)))
         offs = np.arange(-n_xy, n_xy + 1) * top_res
         thetas = prior.theta + np.arange(-n_a, n_a + 1) * a_step
-        x, y, th = _search(top_vals, top_res, field.origin, pts, prior.x + offs, prior.y + offs, thetas, prior)
+        x, y, th = _search(top_vals, top_res, field.origin, pts, prior.x + offs, prior.y + offs, thetas, prior,
+                           self.prior_xy)
         # Finer levels: ±1 step around the best of the coarser level.
         for k in range(self.levels - 1, -1, -1):
             vals, lres = levels[k]
             a_step = ANGLE_STEP * 2**k
             step = np.array([-1.0, 0.0, 1.0])
             x, y, th = _search(
-                vals, lres, field.origin, pts, x + step * lres, y + step * lres, th + step * a_step, prior
+                vals, lres, field.origin, pts, x + step * lres, y + step * lres, th + step * a_step, prior,
+                self.prior_xy,
             )
         return Pose2(x, y, th)
 
@@ -218,6 +222,7 @@ def _search(
     ys: np.ndarray,
     thetas: np.ndarray,
     prior: Pose2,
+    prior_xy: float = PRIOR_XY,
 ) -> tuple[float, float, float]:
     """Score every pose of the grid xs × ys × thetas at once; return the best (x, y, θ).
 
@@ -235,7 +240,7 @@ def _search(
     vals = np.where(inside, values[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)], 0.0)
     dth = np.arctan2(np.sin(thetas - prior.theta), np.cos(thetas - prior.theta))
     penalty = PRIOR_PENALTY * len(pts) * (
-        ((xs[None, :, None] - prior.x) ** 2 + (ys[None, None, :] - prior.y) ** 2) / PRIOR_XY**2
+        ((xs[None, :, None] - prior.x) ** 2 + (ys[None, None, :] - prior.y) ** 2) / prior_xy**2
         + (dth[:, None, None] / PRIOR_THETA) ** 2
     )
     scores = vals.sum(axis=-1) - penalty  # (T, X, Y)

@@ -27,8 +27,14 @@ choose again live in :mod:`homing.mapping.explorer`, shared by all.
 - ``gain_rate`` (default) — for every reachable goal cell of every smoothed
   segment: unknown area within sensor reach of the cell (information gain,
   m²) divided by the travel time there (path length / speed + turning time
-  + a fixed overhead). Keeps its current goal unless another scores
-  ``HYSTERESIS`` times better, so it does not oscillate between two goals.
+  + a fixed overhead + the time lost crawling near walls: a goal cell close
+  to a wall drags the end of the path along it, where the controller slows
+  down, so of two cells of one frontier the one in the open wins). The gain
+  is ray cast (:func:`visible_unknown`), so unknown space behind a mapped
+  wall does not draw the robot to the wall; goals that would reveal less than
+  ``MIN_GAIN`` are ignored, so the run ends instead of touring crumbs. Keeps
+  its current goal unless another scores ``HYSTERESIS`` times better, so it
+  does not oscillate between two goals.
 """
 
 from __future__ import annotations
@@ -40,6 +46,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 from homing.mapping.frontier import (
+    OCCUPIED_AT,
     FrontierSegment,
     keep_reachable,
     raw_frontiers,
@@ -59,7 +66,13 @@ TRAVEL_SPEED = 0.8 * NAV_MAX_V  # [m/s] average speed assumed along a path
 TURN_RATE = 1.0  # [rad/s] in-place turning speed assumed
 FIXED_OVERHEAD = 3.0  # [s] per goal: planning, accelerating, the stop
 HYSTERESIS = 1.3  # a new goal must score this much better than the current one
+SLOW_GAP = 0.30  # [m] a controller slows down when its footprint is closer than this to a wall (Nav2 RPP)
+SLOW_SPEED = 0.15  # [m/s] the slowest it goes there
+SLOW_STRETCH = 1.5  # [m] of the path's end that runs as close to the walls as its goal cell
 MAX_CANDIDATES = 60  # cells evaluated per segment by gain_rate (evenly spaced)
+MAX_TOTAL_CANDIDATES = 600  # and at most this many in all (the gain is ray cast from each)
+GAIN_RAYS = 48  # rays cast from each candidate to count the unknown area it would see
+MIN_GAIN = 0.75  # [m²] a goal that would reveal less is not worth the trip (the thesis's "drop small frontiers")
 
 
 @dataclass
@@ -203,7 +216,7 @@ class ExploreLite:
         order = np.argsort(lab, kind="stable")
         rows, cols, lab = rows[order], cols[order], lab[order]
         splits = np.flatnonzero(np.diff(lab)) + 1
-        out = []
+        out: list[FrontierSegment] = []
         for r, c in zip(np.split(rows, splits), np.split(cols, splits), strict=False):
             if len(r) and len(r) * ctx.resolution >= self.min_frontier_size:
                 out.append(FrontierSegment(np.column_stack([r, c]).astype(np.int64), len(out)))
@@ -247,6 +260,41 @@ def unknown_gain(grid: np.ndarray, resolution: float, radius: float = GAIN_RADIU
     return cv2.resize(area, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
+def visible_unknown(grid: np.ndarray, resolution: float, cells: np.ndarray, radius: float = GAIN_RADIUS,
+                    rays: int = GAIN_RAYS) -> np.ndarray:
+    """(N,) unknown area [m²] a sensor at each of ``cells`` (N, 2) (row, col) would see within ``radius`` [m].
+
+    ``rays`` rays per cell, sampled every cell; a ray stops at the first wall
+    (unknown cells are taken as transparent, the optimistic guess). Each
+    sample stands for the annulus sector it sits in (r·dθ·dr), so the sum is an
+    area. Unlike :func:`unknown_gain`, unknown space behind a mapped wall (the
+    outside of a building) counts for nothing.
+    """
+    n_s = max(1, int(radius / resolution))
+    r = (np.arange(n_s) + 0.5) * resolution  # (S,) [m]
+    a = np.arange(rays) * (2 * np.pi / rays)
+    dr = np.cos(a)[:, None] * r[None, :] / resolution  # (A, S) [cells]
+    dc = np.sin(a)[:, None] * r[None, :] / resolution
+    # Off the grid reads as wall: pad by the reach, then gather through flat indices (no bounds checks).
+    pad = n_s + 1
+    padded = np.pad(grid, pad, constant_values=OCCUPIED_AT)
+    rows = np.rint(cells[:, 0, None, None] + dr[None]).astype(np.int64) + pad  # (N, A, S)
+    cols = np.rint(cells[:, 1, None, None] + dc[None]).astype(np.int64) + pad
+    v = padded.ravel()[rows * padded.shape[1] + cols]
+    open_ray = np.logical_and.accumulate(v < OCCUPIED_AT, axis=2)
+    seen = open_ray & (v == UNKNOWN)
+    return (seen * (r * (2 * np.pi / rays) * resolution)[None, None, :]).sum(axis=(1, 2))
+
+
+def _wall_gap(grid: np.ndarray, resolution: float, robot_radius: float) -> np.ndarray:
+    """(H, W) float32 [m]: distance from each cell to the nearest wall cell, less the robot's radius."""
+    occ = (grid >= OCCUPIED_AT).astype(np.uint8)
+    if not occ.any():
+        return np.full(grid.shape, np.inf, np.float32)
+    d = cv2.distanceTransform(1 - occ, cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * resolution
+    return d - robot_radius
+
+
 class GainRate:
     """Information gain per travel time (see module doc): the default."""
 
@@ -258,7 +306,7 @@ class GainRate:
         segs = _allowed(smoothed_frontiers(ctx.grid, ctx.resolution, ctx.robot_radius), ctx)
         if not segs:
             return None
-        gain = unknown_gain(ctx.grid, ctx.resolution)
+        self._gap = _wall_gap(ctx.grid, ctx.resolution, ctx.robot_radius)
         cells, owners = [], []
         for k, s in enumerate(segs):
             step = max(1, len(s.cells) // MAX_CANDIDATES)
@@ -266,12 +314,18 @@ class GainRate:
             owners.append(np.full(len(cells[-1]), k))
         cand = np.concatenate(cells)
         owner = np.concatenate(owners)
-        score = self._score(ctx, cand, gain)
+        if len(cand) > MAX_TOTAL_CANDIDATES:
+            keep = np.linspace(0, len(cand) - 1, MAX_TOTAL_CANDIDATES).astype(np.int64)
+            cand, owner = cand[keep], owner[keep]
+        gain = visible_unknown(ctx.grid, ctx.resolution, cand)
+        score = np.where(gain >= MIN_GAIN, self._score(ctx, cand, gain), -np.inf)
         i = int(np.argmax(score))
+        if not np.isfinite(score[i]):
+            return None  # only crumbs left: exploration is over
         best, best_score = (int(cand[i, 0]), int(cand[i, 1])), float(score[i])
         if ctx.current_goal is not None:
             cur = np.array([ctx.current_goal])
-            cur_score = float(self._score(ctx, cur, gain)[0])
+            cur_score = float(self._score(ctx, cur, visible_unknown(ctx.grid, ctx.resolution, cur))[0])
             near = np.hypot(cand[:, 0] - cur[0, 0], cand[:, 1] - cur[0, 1]) * ctx.resolution < 0.5
             if near.any() and np.isfinite(cur_score) and best_score < HYSTERESIS * cur_score:
                 j = int(np.flatnonzero(near)[np.argmax(score[near])])
@@ -279,11 +333,15 @@ class GainRate:
         return GoalChoice(best, segs[int(owner[i])], segs, best_score)
 
     def _score(self, ctx: GoalContext, cells: np.ndarray, gain: np.ndarray) -> np.ndarray:
+        """gain (N,) [m²] of ``cells`` (N, 2) over the estimated time to get there [s]."""
         d = ctx.distance[cells[:, 0], cells[:, 1]]
         bearing = np.arctan2(cells[:, 0] - ctx.robot_cell[0], cells[:, 1] - ctx.robot_cell[1])
         turn = np.abs(np.arctan2(np.sin(bearing - ctx.robot_heading), np.cos(bearing - ctx.robot_heading)))
-        time = d / TRAVEL_SPEED + turn / TURN_RATE + FIXED_OVERHEAD
-        return np.where(np.isfinite(d), gain[cells[:, 0], cells[:, 1]] / time, -np.inf)
+        gap = self._gap[cells[:, 0], cells[:, 1]]
+        v_end = np.clip(NAV_MAX_V * gap / SLOW_GAP, SLOW_SPEED, TRAVEL_SPEED)
+        crawl = np.minimum(d, SLOW_STRETCH) * (1.0 / v_end - 1.0 / TRAVEL_SPEED)
+        time = d / TRAVEL_SPEED + turn / TURN_RATE + FIXED_OVERHEAD + crawl
+        return np.where(np.isfinite(d), gain / time, -np.inf)
 
 
 STRATEGIES: dict[str, type] = {

@@ -1,0 +1,237 @@
+"""Exploration leaves: ``Explore`` (frontier goals one at a time, Mata 2017 §2.4) and the ``NoFrontierLeft`` condition.
+
+Thin by design (DESIGN.md, rules of the house): the frontier search, the goal
+strategies, blacklisting and progress checks live in
+:class:`homing.mapping.explorer.Explorer`; the travel-distance field comes
+from :func:`homing.navigation.planner.distance_map` on the navigation
+service's costmap; driving is the navigator's (``/nav/navigator``). The leaf
+only decides *when* to ask for a decision, hands the goal to the navigator
+and returns its status.
+
+Cost per tick: the distance field (fast marching over the whole grid, tens
+of ms on a 25 m map) and the strategy run only every ``decide_period`` [s] of
+adapter time, at once when the navigator reaches or fails its goal, and never
+otherwise; the other ticks cost one navigator step.
+
+Failures: a goal the navigator cannot plan to (``no_path``,
+``goal_occupied``) is blacklisted and exploration goes on with the next one,
+as explore_lite does. A failure of the robot itself (``blocked``,
+``no_progress``, ``start_occupied``, ``invalid_path``) blacklists the goal too,
+then ends the leaf with FAILURE and that reason, so a mission's recovery node
+(clear costmap, spin, back up, wait) can act before it starts again; the
+explorer and its blacklist survive the restart.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from homing.behaviours.base import (
+    CMD_VEL_KEY,
+    OBSERVATION_KEY,
+    TIMEOUT_PARAM,
+    HomingBehaviour,
+    LongAction,
+)
+from homing.behaviours.motion import failure_reason
+from homing.behaviours.registry import Param, register
+from homing.mapping.explorer import REACH_RADIUS, Explorer, ExploreStep
+from homing.mapping.frontier import keep_reachable, smoothed_frontiers
+from homing.mapping.strategies import DEFAULT_STRATEGY, STRATEGIES, make_strategy
+from homing.navigation.navigator import NavStatus
+from homing.navigation.planner import distance_map
+from homing.robot import Pose2
+from py_trees.common import Status
+
+NAVIGATOR_KEY = "/nav/navigator"
+GRID_KEY = "/map/grid"
+POSE_KEY = "/map/pose"
+MAP_TO_ODOM_KEY = "/map/map_to_odom"
+GOAL_KEY = "/explore/goal"
+DECIDE_PERIOD = 1.0  # [s] adapter time between decisions while driving (strategies replan no faster)
+GOAL_REASONS = ("no_path", "goal_occupied")  # the goal's fault: blacklist it and go on
+START_PATIENCE = 3.0  # [s] the robot's cell may be blocked on the costmap this long before the leaf fails
+NO_FRONTIER_PERIOD = 2.0  # [s] NoFrontierLeft recomputes at most this often on a changing grid
+
+
+def distance_field(navigator: Any, grid: Any, pose: Pose2) -> np.ndarray | None:
+    """Travel distance [m] (H, W) from ``pose`` on the navigator's costmap, or None if it does not match ``grid`` yet."""
+    if navigator.costmap.shape != grid.shape:
+        return None
+    return distance_map(navigator.costmap, pose, allow_unknown=False)
+
+
+@register("Explore")
+class Explore(LongAction):
+    """Drive to frontier goals one at a time with a named strategy until no frontier is left (SUCCESS); RUNNING while driving.
+
+    Each goal goes to the navigation service's navigator; the next one is
+    chosen when the robot is within ``reach_radius`` of it (about one robot
+    diameter, as the thesis), when the strategy replans, or when the goal is
+    given up (no progress for ``progress_timeout``, unreachable, navigation
+    failed: blacklisted). Writes the goal to ``/explore/goal``.
+    """
+
+    PARAMS = (
+        Param("strategy", str, DEFAULT_STRATEGY, "", "frontier goal strategy", choices=tuple(sorted(STRATEGIES))),
+        Param("decide_period", float, DECIDE_PERIOD, "s", "time between decisions while driving"),
+        Param("reach_radius", float, REACH_RADIUS, "m", "a goal this close counts as reached"),
+        Param("progress_timeout", float, 30.0, "s", "blacklist a goal the robot gets no closer to for this long"),
+        TIMEOUT_PARAM,
+    )
+    READS = (OBSERVATION_KEY, NAVIGATOR_KEY, GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY)
+    WRITES = (CMD_VEL_KEY, GOAL_KEY)
+
+    def __init__(self, name: str, strategy: str = DEFAULT_STRATEGY, decide_period: float = DECIDE_PERIOD,
+                 reach_radius: float = REACH_RADIUS, progress_timeout: float = 30.0, timeout: float = 0.0,
+                 **kwargs: Any) -> None:
+        super().__init__(name, timeout=timeout, **kwargs)
+        if strategy not in STRATEGIES:
+            raise ValueError(f"unknown strategy '{strategy}' (known: {', '.join(sorted(STRATEGIES))})")
+        self.strategy_name = strategy
+        self.decide_period = float(decide_period)
+        self.reach_radius = float(reach_radius)
+        self.progress_timeout = float(progress_timeout)
+        self.explorer: Explorer | None = None
+        self.navigator: Any = None
+        self.last_step: ExploreStep | None = None
+        self.failures: list[tuple[float, str, Pose2 | None]] = []  # (time, reason, goal) navigation failures
+        self._next_decision = -math.inf
+        self._nav_goal: Pose2 | None = None
+        self._blocked_since: float | None = None
+
+    def setup(self, **kwargs: Any) -> None:
+        super().setup(**kwargs)
+        self.explorer = None  # a new run: a new explorer, seeded from the run's seed
+
+    def _explorer(self) -> Explorer:
+        if self.explorer is None:
+            self.explorer = Explorer(make_strategy(self.strategy_name), self.rng(), reach_radius=self.reach_radius,
+                                     progress_timeout=self.progress_timeout)
+        return self.explorer
+
+    # -- LongAction hooks ---------------------------------------------------------------
+    def on_start(self) -> Status | None:
+        self.navigator = self.read(NAVIGATOR_KEY)
+        if self.navigator is None:
+            return self.fail("no_navigator", "no navigation service (add 'navigation' to services)")
+        self._explorer()
+        self._next_decision = -math.inf
+        self._nav_goal = None
+        self._blocked_since = None
+        return None
+
+    def on_running(self) -> Status:
+        obs, grid, pose = self.observation(), self.read(GRID_KEY), self.read(POSE_KEY)
+        if obs is None or grid is None or pose is None:
+            self.feedback_message = "waiting for the map"
+            return Status.RUNNING
+        now = self.now()
+        nav = self.navigator
+        explorer = self._explorer()
+        # The navigator's verdict on the current goal comes first: it may force a decision now.
+        if self._nav_goal is not None and nav.status is NavStatus.SUCCEEDED:
+            self._next_decision = -math.inf
+        elif self._nav_goal is not None and nav.status is NavStatus.FAILED:
+            reason = failure_reason(nav.feedback.error)
+            self.failures.append((now, reason, self._nav_goal))
+            explorer.report_failure()
+            self._nav_goal = None
+            self._next_decision = -math.inf
+            if reason not in GOAL_REASONS:
+                self.write(GOAL_KEY, None)
+                return self.fail(reason, f"navigation failed ({reason}): {nav.feedback.message}")
+        if now >= self._next_decision:
+            status = self._decide(grid, pose, now)
+            if status is not None:
+                return status
+        if self._nav_goal is None:
+            self.feedback_message = "choosing a frontier"
+            return Status.RUNNING
+        nav_status, cmd, fb = nav.step(obs, grid, pose, self.read(MAP_TO_ODOM_KEY))
+        self.drive(cmd.v, cmd.omega)
+        if nav_status in (NavStatus.SUCCEEDED, NavStatus.FAILED):
+            self._next_decision = -math.inf  # decide on the next tick (the tick's command is already zero)
+        self.feedback_message = f"goal ({self._nav_goal.x:.1f}, {self._nav_goal.y:.1f}): {fb.message}"
+        return Status.RUNNING
+
+    def _decide(self, grid: Any, pose: Pose2, now: float) -> Status | None:
+        distance = distance_field(self.navigator, grid, pose)
+        if distance is None:
+            return None  # the costmap has not caught up with a grown grid: next tick
+        self._next_decision = now + self.decide_period
+        if not np.isfinite(distance).any():
+            # The robot's own cell is blocked on the costmap: nothing is reachable, which is not "explored".
+            if self._blocked_since is None:
+                self._blocked_since = now
+            if now - self._blocked_since >= START_PATIENCE:
+                self._blocked_since = None
+                return self.fail("start_occupied", "the robot stands in an obstacle on the costmap")
+            return None
+        self._blocked_since = None
+        step = self._explorer().update(grid, pose, distance, now)
+        self.last_step = step
+        if step.done:
+            self.navigator.cancel()
+            self._nav_goal = None
+            self.write(GOAL_KEY, None)
+            self.feedback_message = "no frontier left"
+            return Status.SUCCESS
+        if step.goal is None:
+            self._nav_goal = None
+            self.write(GOAL_KEY, None)
+            return None
+        if step.changed or self._nav_goal is None or self.navigator.status is not NavStatus.RUNNING:
+            # Reaching the frontier within reach_radius is the thesis's rule; the final heading does not matter.
+            self.navigator.set_goal(step.goal, xy_tolerance=self.reach_radius, yaw_tolerance=math.inf)
+            self._nav_goal = step.goal
+            self.write(GOAL_KEY, step.goal)
+        return None
+
+    def on_success(self) -> Status:
+        return Status.SUCCESS
+
+    def on_cancel(self) -> None:
+        if self.navigator is not None:
+            self.navigator.cancel()
+        self._nav_goal = None
+
+
+@register("NoFrontierLeft", kind="condition")
+class NoFrontierLeft(HomingBehaviour):
+    """SUCCESS when the map has no smoothed frontier segment the robot can reach (thesis algorithm 1), else FAILURE.
+
+    Recomputed when the grid changes, at most every ``period`` [s]; between
+    times it answers from the last result, so it is cheap in a guard ticked
+    every tick.
+    """
+
+    PARAMS = (Param("period", float, NO_FRONTIER_PERIOD, "s", "recompute at most this often"),)
+    READS = (NAVIGATOR_KEY, GRID_KEY, POSE_KEY)
+
+    def __init__(self, name: str, period: float = NO_FRONTIER_PERIOD, **kwargs: Any) -> None:
+        super().__init__(name, **kwargs)
+        self.period = float(period)
+        self._key: tuple[int, int] | None = None
+        self._next = -math.inf
+        self._answer = False
+        self.segments = 0
+
+    def update(self) -> Status:
+        nav, grid, pose = self.read(NAVIGATOR_KEY), self.read(GRID_KEY), self.read(POSE_KEY)
+        if nav is None or grid is None or pose is None:
+            self.feedback_message = "no map yet"
+            return Status.FAILURE
+        key = (id(grid), int(grid.version))
+        now = self.now()
+        if key != self._key and now >= self._next:
+            distance = distance_field(nav, grid, pose)
+            if distance is not None:
+                self._key, self._next = key, now + self.period
+                segs = keep_reachable(smoothed_frontiers(grid.data, grid.resolution), distance)
+                self.segments = len(segs)
+                self._answer = not segs
+        self.feedback_message = "no frontier left" if self._answer else f"{self.segments} frontier segments"
+        return Status.SUCCESS if self._answer else Status.FAILURE

@@ -1,0 +1,88 @@
+"""The ``grid_slam`` service: odometry and lidar into a scan-matched occupancy grid, every tick (gmapping's role in the thesis, §2.3).
+
+Glue only (ARCHITECTURE.md, services): each observation's odometry and
+latest scan go to :class:`homing.mapping.grid_slam.GridSlam`, which fuses a
+scan only when a new one has arrived (5.5 Hz on the TurtleBot's RPLIDAR,
+so most ticks cost a dictionary lookup), and the service writes:
+
+- ``/map/grid``: the :class:`~homing.mapping.grid.OccupancyGrid`, as a
+  snapshot taken every ``publish_period`` [s] of adapter time (gmapping's
+  ``map_update_interval``, 5 s there): every reader (costmap, frontier
+  search) recomputes what it derives from the grid when a new snapshot
+  appears, so publishing each of the 5.5 scans a second would cost them
+  that work 5.5 times a second for a map that moved by a few cells. The
+  obstacle layer still sees every scan. ``publish_period: 0`` publishes the
+  live grid (changing with every scan);
+- ``/map/pose``: base_link in ``map`` (``map_to_odom ⊕ odom``, fresh every tick);
+- ``/map/map_to_odom``: the scan matcher's correction.
+
+``map`` is the ``odom`` frame at the first scan. When ``tag_slam`` runs after
+this service in the same mission, its keys override these (it owns the grid).
+Do not use ``use_matcher: false`` other than as a baseline: the grid then
+drifts with the wheels.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from homing.behaviours.registry import Param, register_service
+from homing.mapping.grid import OccupancyGrid
+from homing.mapping.grid_slam import GridSlam
+from homing.robot import Observation, RobotAdapter
+
+GRID_KEY = "/map/grid"
+POSE_KEY = "/map/pose"
+MAP_TO_ODOM_KEY = "/map/map_to_odom"
+PUBLISH_PERIOD = 1.0  # [s] between /map/grid snapshots
+
+
+@register_service(
+    "grid_slam",
+    params=(
+        Param("resolution", float, 0.05, "m", "cell size of the occupancy grid"),
+        Param("use_matcher", bool, True, "", "correct odometry by scan-to-map matching (false: odometry-only baseline)"),
+        Param("publish_period", float, PUBLISH_PERIOD, "s", "adapter time between grid snapshots on /map/grid (0: live)"),
+    ),
+    writes=(GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY),
+)
+class GridSlamService:
+    """Scan-matched log-odds occupancy grid; writes ``/map/grid``, ``/map/pose`` and ``/map/map_to_odom``."""
+
+    name = "grid_slam"
+    writes = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY)
+
+    def __init__(self, resolution: float = 0.05, use_matcher: bool = True,
+                 publish_period: float = PUBLISH_PERIOD) -> None:
+        if not resolution > 0:
+            raise ValueError(f"resolution must be positive, not {resolution}")
+        if publish_period < 0:
+            raise ValueError(f"publish_period must be ≥ 0, not {publish_period}")
+        self.slam = GridSlam(resolution=resolution, use_matcher=use_matcher)
+        self.publish_period = float(publish_period)  # [s]
+        self.published: OccupancyGrid = self.slam.grid if publish_period == 0 else self.slam.grid.copy()
+        self.bb: Any = None
+        self.scans_fused = 0
+        self._next_publish = -math.inf
+
+    def setup(self, robot: RobotAdapter, blackboard: Any) -> None:
+        self.bb = blackboard
+        blackboard.set(GRID_KEY, self.published, overwrite=True)
+
+    def update(self, obs: Observation) -> None:
+        """Fuse a new scan if there is one (one scan match + ray trace, ≈ a few ms), then publish."""
+        if self.slam.update(obs.odom, obs.scan):
+            self.scans_fused += 1
+            if self.publish_period > 0 and obs.stamp >= self._next_publish:
+                self._next_publish = obs.stamp + self.publish_period
+                self.published = self.slam.grid.copy()
+        self.bb.set(GRID_KEY, self.published, overwrite=True)
+        self.bb.set(POSE_KEY, self.slam.pose, overwrite=True)
+        self.bb.set(MAP_TO_ODOM_KEY, self.slam.map_to_odom, overwrite=True)
+
+    def shutdown(self) -> None:
+        """Publish the final grid, so whoever saves the map at the end gets every scan."""
+        if self.bb is not None:
+            self.published = self.slam.grid.copy() if self.publish_period > 0 else self.slam.grid
+            self.bb.set(GRID_KEY, self.published, overwrite=True)

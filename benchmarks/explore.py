@@ -1,0 +1,284 @@
+"""Exploration efficiency, thesis table 5.1: every world × strategy × seed explored from the dock for M simulated minutes.
+
+Each run is the real thing: the bundled mission ``missions/explore.yaml``
+(back out of the dock, spin, explore with recoveries) compiled with the
+strategy, ticked by :class:`homing.missions.runner.Runner` against the
+pybullet TurtleBot (:class:`homing.sim.SimRobot`, camera off: the mission
+uses no images) until no frontier is left or ``--minutes`` of adapter time.
+Per run, the thesis's columns:
+
+- efficiency [m²/s]: area explored / time spent exploring (from leaving the
+  dock until the Explore leaf found no frontier left, or the time limit);
+- farthest distance FD [m] from the start, path length PL [m] travelled and
+  area explored AE [m²] (free cells of the robot's grid),
+
+and, from the simulator's ground truth (evaluation only,
+:mod:`homing.mapping.evaluate`): coverage of the free area reachable from
+the dock, the time to 95 % coverage [s], and bumper presses. Ratios to
+``nearest`` and to ``explore_lite`` are computed run by run (same world,
+same seed), then the median is reported.
+
+Worlds default to the bundled ``lab`` and the six floor plans in
+``../shared/worlds/`` when present. Runs go to ``--workers`` processes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from homing.benchmarks.common import print_table, write_json
+
+STRATEGY_ORDER = ("nearest", "largest_closest", "largest_random", "largest_random_raw", "explore_lite", "gain_rate")
+SHARED_WORLDS = Path(__file__).resolve().parent.parent.parent / "shared" / "worlds"
+MISSION = Path(__file__).resolve().parent.parent / "missions" / "explore.yaml"
+COVERAGE_PERIOD = 10.0  # [s] adapter time between coverage samples (time to 95 %)
+COVERAGE_TARGET = 0.95
+THESIS = {  # table 5.1: efficiency [m²/s], FD [m], PL [m], AE [m²]
+    "nearest": (0.0165, 1.286, 6.356, 31.748),
+    "largest_closest": (0.0154, 8.237, 13.171, 53.039),
+    "largest_random": (0.0223, 5.013, 23.126, 45.621),
+    "largest_random_raw": (0.0224, 4.852, 15.482, 44.829),
+}
+
+
+@dataclass
+class RunResult:
+    """One exploration run's figures (units in the field comments)."""
+
+    world: str
+    strategy: str
+    seed: int
+    efficiency: float  # [m²/s]
+    area: float  # [m²] free cells of the grid
+    coverage: float  # fraction of the reachable free area seen free
+    farthest: float  # [m] from the start (truth)
+    path_length: float  # [m] (truth)
+    explore_time: float  # [s] from the start until done or the time limit
+    t95: float  # [s] first sample with ≥ 95 % coverage (nan: never)
+    done: bool  # the mission ended with no frontier left
+    bumps: int  # ticks with a bumper pressed
+    nav_failures: int
+    goals: int
+    agreement: float  # cell agreement with the truth on observed cells
+    wall: float  # [s] real time of the run
+    rtf: float  # adapter seconds per real second
+
+
+def world_specs(names: list[str] | None) -> list[str]:
+    """World specs to run: the given ones, or ``lab`` plus the shared floor plans that exist."""
+    if names:
+        return names
+    specs = ["lab"]
+    if SHARED_WORLDS.is_dir():
+        specs += [str(p) for p in sorted(SHARED_WORLDS.glob("*.yaml"))]
+    return specs
+
+
+def world_label(spec: str) -> str:
+    return Path(spec).stem if spec.endswith((".yaml", ".yml")) else spec
+
+
+def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map: str | None = None) -> RunResult:
+    """One run through the real mission and runner; reads the simulator's truth only to score it."""
+    import numpy as np
+    from homing.mapping.evaluate import coverage
+    from homing.missions.compiler import compile_mission
+    from homing.missions.runner import Runner
+    from homing.sim import SimRobot, load_world
+    from py_trees.common import Access
+
+    world = load_world(world_spec)
+    robot = SimRobot(world, seed=seed, camera=False)
+    mission = compile_mission(MISSION, {"strategy": strategy, "time_limit": f"{minutes * 60.0:g} s"})
+    start_truth = robot.truth_pose()
+    odom0 = robot.observe().odom.pose
+    world_from_map = start_truth.compose(odom0.inverse())  # map = odom at the first scan (grid_slam)
+    track = {"last": start_truth, "path": 0.0, "far": 0.0, "bumps": 0, "next_cov": COVERAGE_PERIOD, "t95": math.nan}
+
+    def on_tick(runner: Runner) -> None:
+        p = robot.truth_pose()
+        track["path"] += p.distance_to(track["last"])
+        track["last"] = p
+        track["far"] = max(track["far"], p.distance_to(start_truth))
+        obs = runner.observation
+        if obs is not None and obs.bumpers.any():
+            track["bumps"] += 1
+        t = runner.now - runner.start
+        if t >= track["next_cov"] and math.isnan(track["t95"]):
+            track["next_cov"] += COVERAGE_PERIOD
+            grid = runner.read("/map/grid")
+            if grid is not None and coverage(grid, world.map, (start_truth.x, start_truth.y),
+                                             world_from_map).coverage >= COVERAGE_TARGET:
+                track["t95"] = t
+
+    runner = Runner(mission, robot, seed=seed, until=minutes * 60.0 + 1.0, on_tick=on_tick)
+    if "/map/grid" not in runner.bb.remappings:
+        runner.bb.register_key(key="/map/grid", access=Access.READ)
+    try:
+        result = runner.run()
+    finally:
+        robot.close()
+    grid = runner.read("/map/grid")
+    explore = next((n for n in mission.root.iterate() if type(n).__name__ == "Explore"), None)
+    cov = coverage(grid, world.map, (start_truth.x, start_truth.y), world_from_map)
+    if math.isnan(track["t95"]) and cov.coverage >= COVERAGE_TARGET:
+        track["t95"] = result.time
+    done = result.reason == "success" and explore is not None and explore.status.value == "SUCCESS"
+    explore_time = max(result.time if done else min(result.time, minutes * 60.0), 1e-9)
+    if save_map:
+        from homing.mapping.map_io import save_grid
+
+        save_grid(save_map, grid)
+    steps = explore.explorer.goals_chosen if explore is not None and explore.explorer is not None else 0
+    return RunResult(
+        world=world_label(world_spec), strategy=strategy, seed=seed,
+        efficiency=cov.area / explore_time, area=cov.area, coverage=cov.coverage,
+        farthest=track["far"], path_length=track["path"], explore_time=explore_time, t95=track["t95"],
+        done=done, bumps=int(track["bumps"]), nav_failures=len(explore.failures) if explore is not None else 0,
+        goals=int(steps), agreement=float(np.float64(cov.agreement)), wall=result.wall, rtf=result.rtf,
+    )  # fmt: skip
+
+
+def _job(args: tuple[str, str, int, float, str | None]) -> RunResult:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    world, strategy, seed, minutes, folder = args
+    save = str(Path(folder) / f"{world_label(world)}_{strategy}_{seed}.yaml") if folder else None
+    return run_one(world, strategy, seed, minutes, save_map=save)
+
+
+# -- aggregation ---------------------------------------------------------------------------------
+def _median(values: list[float]) -> float:
+    vals = [v for v in values if not math.isnan(v)]
+    return float(statistics.median(vals)) if vals else math.nan
+
+
+def run_ratios(results: list[RunResult], baseline: str) -> dict[tuple[str, str], list[float]]:
+    """efficiency(strategy) / efficiency(baseline) for every run, paired on the same world and seed."""
+    base = {(r.world, r.seed): r.efficiency for r in results if r.strategy == baseline}
+    per: dict[tuple[str, str], list[float]] = {}
+    for r in results:
+        b = base.get((r.world, r.seed))
+        if b is not None and b > 0:
+            per.setdefault((r.world, r.strategy), []).append(r.efficiency / b)
+    return per
+
+
+def ratios(results: list[RunResult], baseline: str) -> dict[tuple[str, str], float]:
+    """Median over seeds of the run-by-run ratios of :func:`run_ratios`, per (world, strategy)."""
+    return {k: _median(v) for k, v in run_ratios(results, baseline).items()}
+
+
+def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
+    """JSON figures per world and strategy (medians over seeds) plus an ``all`` world (medians over every run;
+    its ratios are the median of every paired run's ratio)."""
+    vs_near, vs_lite = run_ratios(results, "nearest"), run_ratios(results, "explore_lite")
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    groups: dict[tuple[str, str], list[RunResult]] = {}
+    for r in results:
+        groups.setdefault((r.world, r.strategy), []).append(r)
+        groups.setdefault(("all", r.strategy), []).append(r)
+    for (world, strategy), runs in groups.items():
+        def med(field: str, runs: list[RunResult] = runs) -> float:
+            return _median([float(getattr(r, field)) for r in runs])
+
+        if world == "all":  # every paired run of every world
+            r_near = _median([v for (w, s), vs in vs_near.items() if s == strategy for v in vs])
+            r_lite = _median([v for (w, s), vs in vs_lite.items() if s == strategy for v in vs])
+        else:
+            r_near, r_lite = _median(vs_near.get((world, strategy), [])), _median(vs_lite.get((world, strategy), []))
+        out.setdefault(world, {})[strategy] = {
+            "efficiency": med("efficiency"), "area": med("area"), "coverage": med("coverage"),
+            "min_coverage": min(r.coverage for r in runs), "path_length": med("path_length"),
+            "farthest": med("farthest"), "t95": med("t95"), "bumps": sum(r.bumps for r in runs),
+            "ratio_vs_nearest": r_near, "ratio_vs_explore_lite": r_lite, "runs": len(runs),
+        }  # fmt: skip
+    return out
+
+
+# -- CLI ------------------------------------------------------------------------------------------------
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--worlds", nargs="+", metavar="WORLD",
+                        help="bundled names or YAML paths (default: lab and ../shared/worlds/*.yaml)")
+    parser.add_argument("--strategies", nargs="+", default=list(STRATEGY_ORDER), metavar="NAME",
+                        help=f"frontier strategies (default: all: {', '.join(STRATEGY_ORDER)})")
+    parser.add_argument("--seeds", type=int, default=5, help="seeds per world and strategy (0..N-1)")
+    parser.add_argument("--minutes", type=float, default=30.0, help="simulated minutes per run (thesis: 30)")
+    parser.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1) - 1), help="worker processes")
+    parser.add_argument("--runs-json", metavar="PATH", help="also write every run's figures to PATH")
+    parser.add_argument("--save-maps", metavar="DIR",
+                        help="save each run's final grid as DIR/WORLD_STRATEGY_SEED.yaml (+ .pgm; see homing map show)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from homing.mapping.strategies import STRATEGIES
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from homing.errors import UserError
+
+    bad = [s for s in args.strategies if s not in STRATEGIES]
+    if bad:
+        raise UserError(f"unknown strategy {', '.join(bad)} (known: {', '.join(sorted(STRATEGIES))})")
+    if args.seeds < 1 or args.minutes <= 0 or args.workers < 1:
+        raise UserError("--seeds and --workers must be ≥ 1 and --minutes positive")
+    worlds = world_specs(args.worlds)
+    for w in worlds:
+        from homing.sim.world import resolve
+
+        resolve(w)  # a missing world is the user's mistake: say so before starting workers
+    if args.save_maps:
+        Path(args.save_maps).mkdir(parents=True, exist_ok=True)
+    jobs = [(w, s, seed, args.minutes, args.save_maps) for w in worlds for s in args.strategies
+            for seed in range(args.seeds)]
+    results: list[RunResult] = []
+    t0 = time.monotonic()
+    with Progress(TextColumn("[bold]explore"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  TextColumn("{task.description}")) as progress:
+        task = progress.add_task("", total=len(jobs))
+        if args.workers == 1:
+            for job in jobs:
+                results.append(_job(job))
+                progress.update(task, advance=1, description=_describe(results[-1]))
+        else:
+            import multiprocessing
+
+            ctx = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx) as pool:
+                futures = [pool.submit(_job, job) for job in jobs]
+                for fut in as_completed(futures):
+                    results.append(fut.result())
+                    progress.update(task, advance=1, description=_describe(results[-1]))
+    results.sort(key=lambda r: (r.world, STRATEGY_ORDER.index(r.strategy) if r.strategy in STRATEGY_ORDER else 99, r.seed))
+    summary = summarise(results)
+    rows = []
+    for world in [*(world_label(w) for w in worlds), "all"]:
+        for strategy in args.strategies:
+            s = summary.get(world, {}).get(strategy)
+            if s is None:
+                continue
+            rows.append([world, strategy, s["efficiency"], s["farthest"], s["path_length"], s["area"],
+                         s["coverage"], s["min_coverage"], s["t95"], s["bumps"], s["ratio_vs_nearest"],
+                         s["ratio_vs_explore_lite"]])
+    print_table(
+        f"Exploration, {args.minutes:g} simulated min, medians over {args.seeds} seed(s) "
+        f"({len(results)} runs, {time.monotonic() - t0:.0f} s wall, median rtf "
+        f"{_median([r.rtf for r in results]):.1f}×)",
+        ["world", "strategy", "eff m²/s", "FD m", "PL m", "AE m²", "coverage", "min cov", "t95 s", "bumps",
+         "×nearest", "×explore_lite"],
+        rows,
+    )  # fmt: skip
+    write_json(args.json, summary)
+    if args.runs_json:
+        write_json(args.runs_json, {"runs": [asdict(r) for r in results]})
+    return 0
+
+
+def _describe(r: RunResult) -> str:
+    return f"{r.world} {r.strategy} seed {r.seed}: {r.coverage:.0%} in {r.explore_time:.0f} s ({r.rtf:.0f}×)"

@@ -1,0 +1,218 @@
+"""Exploration leaves and the grid_slam service: blacklisting through the leaf, the no-frontier condition, the
+service's grid against the simulator's truth, and the benchmark's run-by-run ratios."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import py_trees
+import pytest
+from homing.behaviours.explore import GOAL_KEY, Explore, NoFrontierLeft
+from homing.benchmarks.explore import RunResult, ratios, summarise
+from homing.mapping.grid import OccupancyGrid
+from homing.navigation.costmap import Costmap
+from homing.navigation.navigator import NavFeedback, NavStatus, NoProgress
+from homing.navigation.planner import NoPathFound
+from homing.robot import Pose2, Twist2
+from py_trees.common import Access, Status
+
+from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData
+
+RES = 0.05  # [m]
+
+
+def _two_openings() -> OccupancyGrid:
+    """A 4 m × 3 m room (origin at its lower-left corner) with a 1.5 m opening onto unknown in the east and the
+    west wall (explore_lite's frontiers must be ≥ 0.75 m of cells the robot fits next to)."""
+    g = np.full((100, 120), UNKNOWN, dtype=np.int8)
+    g[20:80, 20:100] = FREE
+    g[20, 20:100] = g[79, 20:100] = OCCUPIED
+    g[20:80, 20] = g[20:80, 99] = OCCUPIED
+    g[35:65, 99] = FREE  # east opening
+    g[35:65, 20] = FREE  # west opening
+    return OccupancyGrid.from_map_data(MapData(g, RES, (-1.0, -1.0, 0.0)))
+
+
+class _FailingNavigator:
+    """Stands in for the Navigator above which the leaf sits: a real costmap, and every goal fails as told."""
+
+    def __init__(self, grid: OccupancyGrid, error: Exception) -> None:
+        self.costmap = Costmap()
+        self.costmap.update_static(grid)
+        self.error = error
+        self.status = NavStatus.IDLE
+        self.feedback = NavFeedback()
+        self.goals: list[Pose2] = []
+
+    def set_goal(self, goal: Pose2, xy_tolerance: float | None = None, yaw_tolerance: float | None = None) -> None:
+        self.goals.append(goal)
+        self.status = NavStatus.RUNNING
+        self.feedback = NavFeedback(goal=goal)
+
+    def step(self, obs: Any, grid: Any, pose: Pose2, map_to_odom: Any = None) -> tuple[NavStatus, Twist2, NavFeedback]:
+        self.status = NavStatus.FAILED  # fails on its first step
+        self.feedback.error = self.error
+        self.feedback.message = str(self.error)
+        return self.status, Twist2(), self.feedback
+
+    def cancel(self) -> None:
+        self.status = NavStatus.CANCELLED
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def now(self) -> float:
+        return self.t
+
+
+class _Robot:
+    def __init__(self) -> None:
+        self.clock = _Clock()
+
+
+def _board(grid: OccupancyGrid, nav: Any, pose: Pose2) -> py_trees.blackboard.Client:
+    py_trees.blackboard.Blackboard.clear()
+    bb = py_trees.blackboard.Client(name="test")
+    for key in ("/robot/observation", "/nav/navigator", "/map/grid", "/map/pose", "/map/map_to_odom", GOAL_KEY):
+        bb.register_key(key=key, access=Access.WRITE)
+    bb.set("/robot/observation", object())  # the fake navigator never looks at it
+    bb.set("/nav/navigator", nav)
+    bb.set("/map/grid", grid)
+    bb.set("/map/pose", pose)
+    bb.set("/map/map_to_odom", Pose2())
+    return bb
+
+
+def _tick(leaf: Explore, robot: _Robot, dt: float = 0.1) -> Status:
+    leaf.tick_once()
+    robot.clock.t += dt
+    return leaf.status
+
+
+@pytest.mark.parametrize("strategy", ["nearest", "gain_rate", "explore_lite"])
+def test_explore_blacklists_a_goal_the_navigator_fails_and_moves_on(strategy: str) -> None:
+    grid = _two_openings()
+    pose = Pose2(1.0, 1.5, 0.0)
+    nav = _FailingNavigator(grid, NoPathFound("no free path"))
+    _board(grid, nav, pose)
+    robot = _Robot()
+    leaf = Explore("Explore", strategy=strategy)
+    leaf.setup(robot=robot, seed=3)
+    statuses = [_tick(leaf, robot) for _ in range(2)]
+    # A goal the planner cannot reach is the goal's fault: blacklisted, and the leaf goes on RUNNING.
+    assert statuses == [Status.RUNNING, Status.RUNNING], leaf.feedback_message
+    assert len(nav.goals) == 2
+    first, second = nav.goals[0], nav.goals[1]
+    assert first.distance_to(second) > leaf.explorer.blacklist_radius  # not the same frontier again
+    assert (first.x, first.y) in leaf.explorer.blacklist
+    assert [f[1] for f in leaf.failures] == ["no_path"]
+    # Goals lie in the two openings (x ≈ 0 or x ≈ 4 m, 0.75 ≤ y ≤ 2.25 m), never inside the known room.
+    assert all(min(abs(g.x), abs(g.x - 4.0)) < 0.4 and 0.75 <= g.y <= 2.25 for g in nav.goals)
+
+
+def test_explore_fails_with_the_reason_when_the_robot_cannot_progress() -> None:
+    grid = _two_openings()
+    nav = _FailingNavigator(grid, NoProgress("stuck"))
+    bb = _board(grid, nav, Pose2(1.0, 1.5, 0.0))
+    robot = _Robot()
+    leaf = Explore("Explore", strategy="nearest")
+    leaf.setup(robot=robot, seed=0)
+    statuses = [_tick(leaf, robot) for _ in range(2)]
+    assert statuses == [Status.RUNNING, Status.FAILURE] and leaf.failure_reason == "no_progress"
+    assert len(leaf.explorer.blacklist) == 1 and bb.get(GOAL_KEY) is None
+    # Started again (as a recovery node does), it keeps its blacklist and picks the other opening.
+    _tick(leaf, robot)
+    assert len(nav.goals) == 2 and nav.goals[0].distance_to(nav.goals[1]) > 3.0
+
+
+def test_explore_succeeds_when_no_frontier_is_left_and_the_condition_agrees() -> None:
+    g = np.full((100, 120), UNKNOWN, dtype=np.int8)
+    g[20:80, 20:100] = FREE
+    g[20, 20:100] = g[79, 20:100] = OCCUPIED
+    g[20:80, 20] = g[20:80, 99] = OCCUPIED
+    closed = OccupancyGrid.from_map_data(MapData(g, RES, (-1.0, -1.0, 0.0)))
+    for grid, done in ((closed, True), (_two_openings(), False)):
+        nav = _FailingNavigator(grid, NoPathFound("x"))
+        _board(grid, nav, Pose2(1.0, 1.5, 0.0))
+        robot = _Robot()
+        cond = NoFrontierLeft("NoFrontierLeft")
+        cond.setup(robot=robot, seed=0)
+        cond.tick_once()
+        assert cond.status == (Status.SUCCESS if done else Status.FAILURE)
+        if done:
+            leaf = Explore("Explore")
+            leaf.setup(robot=robot, seed=0)
+            assert _tick(leaf, robot) == Status.SUCCESS and not nav.goals
+
+
+def test_grid_slam_service_grid_agrees_with_the_truth(tmp_path: Path) -> None:
+    """The service in the mission runner, on the simulator: back out of the lab's dock and turn a full circle."""
+    sim = pytest.importorskip("homing.sim")
+    from homing.mapping.evaluate import cell_agreement
+    from homing.missions.compiler import compile_mission
+    from homing.missions.runner import Runner
+
+    mission = tmp_path / "m.yaml"
+    mission.write_text(
+        "services: [{grid_slam: {publish_period: 0.5}}]\n"
+        "view: {blackboard: [/map/grid, /map/pose]}\n"
+        "tree:\n  sequence: [{Drive: {v: -0.1, seconds: 4}}, {Drive: {omega: 0.8, seconds: 8}}]\n"
+    )
+    robot = sim.SimRobot(sim.load_world("lab"), seed=2, camera=False)
+    try:
+        world_from_map = robot.truth_pose().compose(robot.observe().odom.pose.inverse())
+        runner = Runner(compile_mission(mission), robot, seed=2)
+        result = runner.run()
+        truth_end = robot.truth_pose()
+        grid, pose = runner.read("/map/grid"), runner.read("/map/pose")
+        assert result.reason == "success"
+        assert (grid.data != UNKNOWN).sum() * RES**2 > 20.0  # a full turn sees a good part of the room
+        assert cell_agreement(grid, robot.world.map, world_from_map) >= 0.97
+        est = world_from_map.compose(pose)
+        assert math.hypot(est.x - truth_end.x, est.y - truth_end.y) < 0.10
+        assert abs(math.remainder(est.theta - truth_end.theta, 2 * math.pi)) < math.radians(3.0)
+    finally:
+        robot.close()
+
+
+def _run(world: str, strategy: str, seed: int, eff: float) -> RunResult:
+    nan = float("nan")
+    return RunResult(world, strategy, seed, eff, 10.0, 0.9, 1.0, 1.0, 100.0, nan, True, 0, 0, 1, 1.0, 1.0, 1.0)
+
+
+def test_benchmark_ratios_are_taken_run_by_run_on_the_same_world_and_seed() -> None:
+    runs = [
+        _run("a", "nearest", 0, 0.01), _run("a", "gain_rate", 0, 0.02),
+        _run("a", "nearest", 1, 0.04), _run("a", "gain_rate", 1, 0.05),
+        _run("a", "nearest", 2, 0.10), _run("a", "gain_rate", 2, 0.30),
+        _run("b", "nearest", 0, 1.00), _run("b", "gain_rate", 0, 0.50),
+    ]  # fmt: skip
+    r = ratios(runs, "nearest")
+    # per seed: 2.0, 1.25, 3.0 → median 2.0 (a ratio of medians would say 0.05 / 0.04 = 1.25)
+    assert r[("a", "gain_rate")] == pytest.approx(2.0)
+    assert r[("b", "gain_rate")] == pytest.approx(0.5)
+    s = summarise(runs)
+    assert s["a"]["gain_rate"]["ratio_vs_nearest"] == pytest.approx(2.0)
+    assert math.isnan(s["a"]["gain_rate"]["ratio_vs_explore_lite"])  # no explore_lite runs
+    assert s["all"]["gain_rate"]["ratio_vs_nearest"] == pytest.approx(1.625)  # median of 2.0, 1.25, 3.0, 0.5
+    assert set(s["a"]["nearest"]) >= {"efficiency", "area", "coverage", "path_length", "ratio_vs_nearest",
+                                      "ratio_vs_explore_lite"}
+
+
+def test_gain_rate_counts_only_the_unknown_area_a_sensor_could_see() -> None:
+    from homing.mapping.strategies import GAIN_RADIUS, visible_unknown
+
+    g = np.full((200, 200), FREE, dtype=np.int8)
+    centre = np.array([[100, 100]])
+    g[:, 121:] = UNKNOWN  # unknown beyond x = 1 m east of the cell (cell edges at 0.05 m)
+    seen = float(visible_unknown(g, RES, centre)[0])
+    a, r = 1.05, GAIN_RADIUS  # the circular segment beyond the chord
+    segment = r * r * math.acos(a / r) - a * math.sqrt(r * r - a * a)
+    assert seen == pytest.approx(segment, rel=0.08)
+    g[:, 118:121] = OCCUPIED  # a mapped wall in front of the unknown: nothing to see
+    assert float(visible_unknown(g, RES, centre)[0]) == 0.0
