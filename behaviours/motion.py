@@ -5,7 +5,7 @@ Thin by design: each reads the blackboard, calls :mod:`homing.navigation`
 recovery motion), and writes ``/cmd_vel``. Long ones derive from
 :class:`~homing.behaviours.base.LongAction`, which owns the deadline and
 cancellation; failures carry a typed ``failure_reason`` (``no_path``,
-``goal_occupied``, ``start_occupied``, ``no_progress``, ``blocked``, …) so a
+``goal_occupied``, ``start_occupied``, ``no_progress``, ``blocked``, ``bumped``, …) so a
 recovery node can choose by cause: the leaves also write it to
 ``failure_key`` (default ``/nav/failure``; None while running or after a
 success), so a recovery branch can test it with ``CheckBlackboard``.
@@ -25,7 +25,7 @@ from homing.behaviours.base import (
 )
 from homing.behaviours.registry import Param, register
 from homing.navigation.controller import CollisionAhead, InvalidPath
-from homing.navigation.navigator import NavStatus, NoProgress
+from homing.navigation.navigator import NavStatus, NoProgress, TooManyBumps
 from homing.navigation.planner import GoalOccupied, NoPathFound, StartOccupied
 from homing.navigation.recovery import BackUp as BackUpMotion
 from homing.navigation.recovery import MotionStatus, Recovery
@@ -43,6 +43,7 @@ FAILURE_PARAM = Param("failure_key", str, FAILURE_KEY, doc="blackboard key the t
 _REASONS: tuple[tuple[type, str], ...] = (
     (StartOccupied, "start_occupied"), (GoalOccupied, "goal_occupied"), (NoPathFound, "no_path"),
     (NoProgress, "no_progress"), (CollisionAhead, "blocked"), (InvalidPath, "invalid_path"),
+    (TooManyBumps, "bumped"),
 )
 
 

@@ -8,6 +8,13 @@ latest scan and ``/map/pose`` (written by ``grid_slam``, ``tag_slam`` or any
 localiser on a known map: list it before ``navigation``), so leaves that only read the costmap (frontier
 ranking, path checks) see the present world even when nothing navigates.
 Leaves drive with it (:mod:`homing.behaviours.motion`).
+
+What the lidar cannot see: the ``keepout`` parameter (and ``/nav/keepout``,
+which starts with it and any leaf may overwrite) lists zones in ``map``
+no path may cross, ``[x, y, r]`` discs and ``[[x, y], …]`` polygons; with
+``dock_keepout`` the dock is one of them when the robot starts on it (the
+charging source says so), placed in front of its first pose in ``map``.
+Bumper presses mark the costmap by themselves (:mod:`homing.navigation.layers`).
 """
 
 from __future__ import annotations
@@ -17,17 +24,21 @@ from typing import Any
 from homing.behaviours.registry import Param, register_service
 from homing.navigation.controller import CONTROLLERS
 from homing.navigation.costmap import CostmapParams
+from homing.navigation.layers import Keepout, dock_keepout, parse_keepout
 from homing.navigation.navigator import Navigator
 from homing.navigation.planner import PLANNERS
 from homing.robot import Observation, RobotAdapter
 from homing.robot.turtlebot import FOOTPRINT_RADIUS
 from py_trees.common import Access
 
+from homing.errors import UserError
+
 NAVIGATOR_KEY = "/nav/navigator"
 GOAL_KEY = "/nav/goal"  # the default goal slot of NavigateToPose: created empty here, set by any leaf
 GRID_KEY = "/map/grid"
 POSE_KEY = "/map/pose"
 MAP_TO_ODOM_KEY = "/map/map_to_odom"
+KEEPOUT_KEY = "/nav/keepout"  # keep-out zones in map: the service's parameter at first, any leaf may set it
 
 
 @register_service(
@@ -44,20 +55,22 @@ MAP_TO_ODOM_KEY = "/map/map_to_odom"
         Param("xy_tolerance", float, 0.15, "m", "goal reached within this distance"),
         Param("yaw_tolerance", float, 0.25, "rad", "and this heading error"),
         Param("allow_unknown", bool, True, "", "plan through unknown cells"),
+        Param("keepout", list, [], "m", "zones in map no path may cross: [x, y, r] discs, [[x, y], ...] polygons"),
+        Param("dock_keepout", bool, True, "", "mark the dock in front of the robot when it starts on it"),
     ),
-    writes=(NAVIGATOR_KEY, GOAL_KEY),
+    writes=(NAVIGATOR_KEY, GOAL_KEY, KEEPOUT_KEY),
 )
 class NavigationService:
     """Costmap, global planner and local controller, chosen by name; writes ``/nav/navigator``."""
 
     name = "navigation"
-    writes = (NAVIGATOR_KEY, GOAL_KEY)
+    writes = (NAVIGATOR_KEY, GOAL_KEY, KEEPOUT_KEY)
     reads = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY)
 
     def __init__(self, planner: str = "fmm", controller: str = "rpp", footprint_radius: float = FOOTPRINT_RADIUS,
                  inflation_radius: float = 0.55, cost_scaling_factor: float = 5.0, max_speed: float = 0.5,
                  xy_tolerance: float = 0.15, yaw_tolerance: float = 0.25, allow_unknown: bool = True,
-                 fallback: str = "dwb") -> None:
+                 fallback: str = "dwb", keepout: list[Any] | None = None, dock_keepout: bool = True) -> None:
         self.navigator = Navigator(
             planner=planner, controller=controller,
             costmap=CostmapParams(footprint_radius=footprint_radius, inflation_radius=inflation_radius,
@@ -67,6 +80,13 @@ class NavigationService:
             xy_tolerance=xy_tolerance, yaw_tolerance=yaw_tolerance,
         )
         self.bb: Any = None
+        try:
+            self.keepout = parse_keepout(keepout or [])
+        except ValueError as err:
+            raise UserError(f"navigation service: {err}") from None
+        self.dock_keepout = dock_keepout
+        self.dock_zone: Keepout | None = None
+        self._first_update = True
 
     def setup(self, robot: RobotAdapter, blackboard: Any) -> None:
         self.bb = blackboard
@@ -74,10 +94,17 @@ class NavigationService:
             blackboard.register_key(key=key, access=Access.READ)
         blackboard.set(NAVIGATOR_KEY, self.navigator, overwrite=True)
         blackboard.set(GOAL_KEY, None, overwrite=False)
+        blackboard.set(KEEPOUT_KEY, list(self.keepout), overwrite=False)
 
     def update(self, obs: Observation) -> None:
         """Refresh the costmap (cheap when neither the grid nor the scan changed)."""
         grid, pose = self._get(GRID_KEY), self._get(POSE_KEY)
+        if pose is not None and self._first_update:
+            self._first_update = False
+            if self.dock_keepout and obs.battery.on_dock:
+                self.dock_zone = dock_keepout(pose)  # the robot sits on the dock, facing it
+        zones = parse_keepout(self._get(KEEPOUT_KEY))
+        self.navigator.set_keepout([*zones, self.dock_zone] if self.dock_zone is not None else zones)
         if grid is not None and pose is not None:
             self.navigator.update_costmap(obs, grid, pose, self._get(MAP_TO_ODOM_KEY))
 

@@ -10,10 +10,17 @@ are combined into one (H, W) uint8 cost array in the ``map`` frame.
 - **obstacle**: what the latest scans see, marked at the rays' end points and
   cleared by ray tracing from the laser, kept between scans until cleared
   (by later rays or by :meth:`Costmap.clear`, the "clear costmap" recovery);
+- **keep-out** and **bumper** layers (:mod:`homing.navigation.layers`):
+  what the lidar cannot see — zones the mission forbids (the dock) and arcs
+  where a bumper fired — lethal, untouched by the scan's clearing;
 - **inflation**: every cell within ``footprint_radius`` (+ padding) of a lethal
   cell is ``INSCRIBED`` (the robot's centre there means contact); beyond it the
   cost decays as ``252·exp(−k·(d − r_inscribed))`` up to ``inflation_radius``,
   exactly Nav2's inflation layer, so planners keep a margin from walls.
+
+The costmap spans the grid and, while a goal lies beyond it, a box around
+that goal (:meth:`Costmap.require`): the cells outside the grid are unknown,
+so a planner with ``allow_unknown`` plans into them as Nav2's does.
 
 The TurtleBot is round, so a cell's cost *is* the footprint cost of the robot
 centred there; do not use this for non-circular robots.
@@ -27,7 +34,15 @@ from typing import Any
 
 import cv2
 import numpy as np
-from homing.robot import Pose2, Scan
+from homing.navigation.layers import (
+    BumpMarks,
+    Keepout,
+    bumper_arc,
+    near,
+    parse_keepout,
+    rasterise_keepout,
+)
+from homing.robot import Bumpers, Pose2, Scan
 from homing.robot.turtlebot import FOOTPRINT_RADIUS
 
 # Nav2's cost values (nav2_costmap_2d/cost_values.hpp)
@@ -107,6 +122,12 @@ class Costmap:
         self.cost: np.ndarray = np.zeros((0, 0), dtype=np.uint8)
         self.clearance = np.zeros((0, 0), dtype=np.float32)
         self.version = 0  # bumped whenever ``cost`` changes
+        self.keepout: list[Keepout] = []
+        self.bumps = BumpMarks()
+        self.required: tuple[float, float, float, float] | None = None  # [m] box the costmap must span
+        self._grid: tuple[np.ndarray, float, tuple[float, float]] | None = None  # the last static grid as given
+        self._keepout_mask: np.ndarray | None = None
+        self._keepout_key: tuple[object, ...] | None = None
 
     # -- geometry -----------------------------------------------------------------
     @property
@@ -157,8 +178,11 @@ class Costmap:
         """Static layer from an (H, W) int8 grid (≥ 50 lethal, < 0 unknown), resolution [m], origin (x, y) [m].
 
         If the grid moved or grew, obstacle marks are carried over at their map positions.
+        While :attr:`required` reaches beyond the grid, the layer is padded with unknown cells to span it.
         """
         data = np.asarray(data)
+        self._grid = (data, float(resolution), (float(origin[0]), float(origin[1])))
+        data, origin = self._pad_to_required(data, float(resolution), (float(origin[0]), float(origin[1])))
         same = (
             data.shape == self.static.shape
             and resolution == self.resolution
@@ -176,6 +200,69 @@ class Costmap:
             if old_pts is not None:
                 self._mark(old_pts)
         self._inflate()
+
+    def require(self, xmin: float, ymin: float, xmax: float, ymax: float) -> None:
+        """Make the costmap span the box [m] (``map``) as well as the grid; cells beyond the grid are unknown."""
+        box = (float(xmin), float(ymin), float(xmax), float(ymax))
+        if box != self.required:
+            self.required = box
+            if self._grid is not None:
+                self.set_static(*self._grid)
+
+    def release(self) -> None:
+        """Drop the :meth:`require` box: the costmap shrinks back to the grid at the next static update."""
+        if self.required is not None:
+            self.required = None
+            if self._grid is not None:
+                self.set_static(*self._grid)
+
+    def _pad_to_required(self, data: np.ndarray, res: float,
+                         origin: tuple[float, float]) -> tuple[np.ndarray, tuple[float, float]]:
+        """Pad ``data`` with unknown (−1) on the grid's own lattice so that it spans :attr:`required`."""
+        if self.required is None:
+            return data, origin
+        xmin, ymin, xmax, ymax = self.required
+        h, w = data.shape
+        ox, oy = origin
+        left = max(0, math.ceil((ox - xmin) / res - 1e-9))
+        below = max(0, math.ceil((oy - ymin) / res - 1e-9))
+        right = max(0, math.ceil((xmax - (ox + w * res)) / res - 1e-9))
+        above = max(0, math.ceil((ymax - (oy + h * res)) / res - 1e-9))
+        if not (left or below or right or above):
+            return data, origin
+        padded = np.pad(data, ((below, above), (left, right)), constant_values=-1)
+        return padded, (ox - left * res, oy - below * res)
+
+    def set_keepout(self, zones: object) -> None:
+        """Replace the keep-out zones (:func:`homing.navigation.layers.parse_keepout` spellings, ``map`` frame)."""
+        parsed = parse_keepout(zones)
+        if len(parsed) == len(self.keepout) and all(
+                a.radius == b.radius and np.array_equal(a.points, b.points)
+                for a, b in zip(parsed, self.keepout, strict=True)):
+            return
+        self.keepout = parsed
+        self._keepout_key = None
+        if self.static.size:
+            self._inflate()
+
+    def mark_bumpers(self, bumpers: Bumpers, pose_in_map: Pose2, stamp: float) -> bool:
+        """Mark the rim arcs of the pressed bumpers of a robot at ``pose_in_map``; whether any was pressed."""
+        pts = bumper_arc(bumpers, pose_in_map)
+        if len(pts) == 0:
+            return False
+        self.bumps.add(pts, stamp)
+        if self.static.size:
+            self._inflate()
+        return True
+
+    def forget_bumps(self, now: float) -> None:
+        """Drop bumper marks older than their memory at ``now`` [s]."""
+        if self.bumps.forget(now) and self.static.size:
+            self._inflate()
+
+    def virtual_points(self, pose: Pose2, radius: float) -> np.ndarray:
+        """(M, 2) [m] ``map`` points of what the lidar cannot see (keep-out edges, bumper marks) within ``radius``."""
+        return near([*(z.edge() for z in self.keepout), self.bumps.points], pose, radius)
 
     def update_scan(self, scan: Scan, pose_in_map: Pose2) -> None:
         """Clear the obstacle layer along the scan's rays and mark their end points (map frame)."""
@@ -207,7 +294,8 @@ class Costmap:
         self._inflate()
 
     def clear(self) -> None:
-        """Empty the obstacle layer (Nav2's ClearEntireCostmap); the static layer stays."""
+        """Empty the obstacle layer and the bumper marks (Nav2's ClearEntireCostmap); static and keep-out stay."""
+        self.bumps.clear()
         if self.obstacles.size:
             self.obstacles[:] = False
             self._inflate()
@@ -219,7 +307,7 @@ class Costmap:
 
     def _inflate(self) -> None:
         """Combine the layers and inflate lethal cells by the footprint and the decay."""
-        lethal = (self.static == LETHAL) | self.obstacles
+        lethal = (self.static == LETHAL) | self.obstacles | self._unseen_layer()
         if lethal.any():
             # cv2's precise L2 transform is the exact Euclidean distance to the nearest zero pixel.
             free = np.where(lethal, 0, 255).astype(np.uint8)
@@ -234,6 +322,23 @@ class Costmap:
         unknown = (self.static == NO_INFORMATION) & (self.cost < INSCRIBED)
         self.cost[unknown] = NO_INFORMATION
         self.version += 1
+
+
+    def _unseen_layer(self) -> np.ndarray:
+        """(H, W) bool: keep-out zones (cached per geometry) and bumper marks."""
+        key = (self.shape, self.resolution, self.origin)
+        if self._keepout_key != key:
+            self._keepout_mask = (rasterise_keepout(self.keepout, self.shape, self.resolution, self.origin)
+                                  if self.keepout else np.zeros(self.shape, dtype=bool))
+            self._keepout_key = key
+        assert self._keepout_mask is not None
+        if not len(self.bumps):
+            return self._keepout_mask
+        layer = self._keepout_mask.copy()
+        rc = self.world_to_cell(self.bumps.points)
+        rc = rc[self.inside(rc)]
+        layer[rc[:, 0], rc[:, 1]] = True
+        return layer
 
 
 def inflation_cost(distance: np.ndarray, inscribed_radius: float, inflation_radius: float,

@@ -10,6 +10,14 @@ command to ``/cmd_vel``. Failures are typed (the planner's
 :class:`~homing.navigation.controller.ControllerError`, :class:`NoProgress`)
 and land in ``feedback.error`` so a recovery can choose by cause.
 
+A goal beyond the grid is planned to all the same: the costmap grows to
+hold it (the cells beyond the grid unknown, crossed at a cost with the
+planner's ``allow_unknown`` as in Nav2) and the path is replanned as the
+grid fills in. A bumper press marks the costmap (see
+:mod:`homing.navigation.layers`), backs the robot off ``BUMP_BACKUP`` and
+replans around the mark; keep-out zones and bumper marks reach the
+controller as points beside the scan's, since the lidar cannot see them.
+
 Progress (Nav2's progress checker) counts turning on the spot a few times
 only; a ``map_to_odom`` correction larger than a few centimetres replans at
 once, so the path follows the map the robot is now placed in. The controller
@@ -35,8 +43,9 @@ from homing.navigation.controller import (
     InvalidPath,
     make_controller,
 )
-from homing.navigation.costmap import INSCRIBED, Costmap, CostmapParams
+from homing.navigation.costmap import INSCRIBED, NO_INFORMATION, Costmap, CostmapParams
 from homing.navigation.planner import ESCAPE_RADIUS, PlanningError, make_planner, path_length
+from homing.navigation.recovery import BackUp, MotionStatus
 from homing.robot import Observation, Pose2, Twist2
 from homing.robot.frames import wrap_angle
 
@@ -56,6 +65,11 @@ HEADING_MAX_OMEGA = 1.2  # [rad/s]
 ODOM_HISTORY = 3.0  # [s] odometry kept to move a stale scan to the present
 MAP_JUMP_XY = 0.05  # [m] a map → odom correction this large replans at once (the path was planned in the old map)
 MAP_JUMP_YAW = 0.05  # [rad]
+GOAL_MARGIN = 0.5  # [m] the costmap spans this much around a goal beyond the grid (room to plan around it)
+BUMP_BACKUP = 0.25  # [m] backed off after a bumper press (Nav2's recovery tree backs up 0.30 m)
+BUMP_BACKUP_SPEED = 0.1  # [m/s]
+BUMP_LIMIT = 5  # bumper presses within one goal before it fails (something unseen keeps getting in the way)
+VIRTUAL_RADIUS = 2.0  # [m] keep-out edges and bumper marks this close are handed to the controller
 SCAN_MEMORY = 3  # scans (≈ 0.5 s at 5.5 Hz) whose points the controller checks: fills single-scan dropouts
 
 
@@ -77,6 +91,10 @@ class NoProgress(NavigationError):
     """The robot has not moved ``PROGRESS_RADIUS`` in ``PROGRESS_TIME`` (Nav2's progress checker)."""
 
 
+class TooManyBumps(NavigationError):
+    """A bumper fired ``BUMP_LIMIT`` times on the way to one goal: what the lidar cannot see blocks it."""
+
+
 @dataclass
 class NavFeedback:
     """What the navigator reports each step (for leaves, the view and pictures)."""
@@ -88,6 +106,7 @@ class NavFeedback:
     message: str = ""
     replans: int = 0
     recoveries: list[str] = field(default_factory=list)
+    bumps: int = 0  # bumper presses during this goal
 
 
 class Navigator:
@@ -125,6 +144,7 @@ class Navigator:
         self._scan_stamp: float | None = None
         self._odom: deque[tuple[float, Pose2]] = deque()
         self._scans: deque[tuple[float, Pose2, np.ndarray]] = deque(maxlen=SCAN_MEMORY)  # stamp, odom then, points
+        self._bump_stamp: float | None = None  # observation whose bumpers were last marked
         self._reset_goal_state()
 
     # -- goals ---------------------------------------------------------------------------
@@ -137,6 +157,13 @@ class Navigator:
         self._reset_goal_state()
         self.status = NavStatus.RUNNING
         self.feedback = NavFeedback(goal=goal, message="navigating")
+        # A goal beyond the grid (a user's, or one the map has not reached yet): grow the costmap to it.
+        m = GOAL_MARGIN
+        self.costmap.require(goal.x - m, goal.y - m, goal.x + m, goal.y + m)
+
+    def set_keepout(self, zones: object) -> None:
+        """Keep-out zones in ``map`` (:func:`homing.navigation.layers.parse_keepout` spellings) no path may cross."""
+        self.costmap.set_keepout(zones)
 
     def cancel(self) -> None:
         """Drop the goal; the next step returns CANCELLED and a zero command."""
@@ -144,6 +171,7 @@ class Navigator:
             self.status = NavStatus.CANCELLED
             self.feedback.message = "cancelled"
         self.controller.reset()
+        self.costmap.release()
 
     def _reset_goal_state(self) -> None:
         self.path: np.ndarray | None = None
@@ -157,6 +185,7 @@ class Navigator:
         self._last_stamp: float | None = None
         self._force_replan = True
         self._plan_map_to_odom: Pose2 | None = None
+        self._backup: BackUp | None = None  # backing off a bump
 
     # -- world model -----------------------------------------------------------------------
     def update_costmap(self, obs: Observation, grid: Any, pose_in_map: Pose2,
@@ -170,6 +199,11 @@ class Navigator:
         if grid is not None and (key != self._static_key or stale):
             self.costmap.update_static(grid)
             self._static_key, self._static_time = key, obs.stamp
+        if self.costmap.cost.size and obs.stamp != self._bump_stamp:
+            # Bumper presses mark where the robot is now; the marks fade after their memory.
+            self._bump_stamp = obs.stamp
+            self.costmap.mark_bumpers(obs.bumpers, pose_in_map, obs.stamp)
+            self.costmap.forget_bumps(obs.stamp)
         scan = obs.scan
         if scan is not None and scan.stamp != self._scan_stamp and self.costmap.cost.size:
             self._scan_stamp = scan.stamp
@@ -195,6 +229,14 @@ class Navigator:
             self._scans.append((obs.scan.stamp, self._odom_at(obs.scan.stamp), obs.scan.points()))
         now = obs.odom.pose
         return np.vstack([now.between(then).transform_points(pts) for _, then, pts in self._scans])
+
+    def obstacle_points_now(self, obs: Observation, pose_in_map: Pose2) -> np.ndarray:
+        """(M, 2) [m] in base_link: :meth:`scan_points_now` plus the nearby keep-out edges and bumper marks."""
+        pts = self.scan_points_now(obs)
+        unseen = self.costmap.virtual_points(pose_in_map, VIRTUAL_RADIUS)
+        if len(unseen) == 0:
+            return pts
+        return np.vstack([pts, pose_in_map.inverse().transform_points(unseen)])
 
     def _remember_odom(self, obs: Observation) -> None:
         if not self._odom or self._odom[-1][0] < obs.stamp:
@@ -224,6 +266,21 @@ class Navigator:
         self._last_stamp = now
         fb = self.feedback
         fb.error = None
+        # A bumper fired: something the lidar cannot see. It is marked; back off, then plan around it.
+        if obs.bumpers.any() and self._backup is None:
+            fb.bumps += 1
+            if fb.bumps >= BUMP_LIMIT:
+                return self._fail(TooManyBumps(f"a bumper fired {fb.bumps} times on the way"))
+            self._backup = BackUp(BUMP_BACKUP, BUMP_BACKUP_SPEED)
+            self._backup.start(now, obs.odom.pose)
+            self.controller.reset()
+        if self._backup is not None:
+            state, cmd = self._backup.step(now, obs.odom.pose, self.obstacle_points_now(obs, pose_in_map))
+            if state is MotionStatus.RUNNING:
+                fb.message = "bumped: backing off"
+                return NavStatus.RUNNING, cmd, fb
+            self._backup, self._force_replan = None, True
+            self._checkpoint = None  # backing off is not a lack of progress
         # Arrived?
         dist = pose_in_map.distance_to(self.goal)
         if dist <= self.goal_xy_tolerance:
@@ -257,7 +314,7 @@ class Navigator:
         fb.distance_remaining = path_length(np.vstack([[pose_in_map.x, pose_in_map.y], self.path[1:]]))
         # Control.
         try:
-            cmd = self.controller.compute(pose_in_map, obs.odom.twist, self.path, self.scan_points_now(obs),
+            cmd = self.controller.compute(pose_in_map, obs.odom.twist, self.path, self.obstacle_points_now(obs, pose_in_map),
                                           self.costmap, dt)
             self._blocked_since = None
             fb.message = f"{dist:.2f} m to go"
@@ -297,6 +354,7 @@ class Navigator:
             self.feedback.message = "goal reached"
             self.feedback.distance_remaining = 0.0
             self.controller.reset()
+            self.costmap.release()
             return self.status, Twist2(), self.feedback
         w = float(np.clip(HEADING_GAIN * err, -HEADING_MAX_OMEGA, HEADING_MAX_OMEGA))
         w = math.copysign(max(abs(w), HEADING_MIN_OMEGA), err)
@@ -316,11 +374,16 @@ class Navigator:
         pts = np.concatenate([a + np.linspace(0, 1, k, endpoint=False)[:, None] * d
                               for a, d, k in zip(self.path[:-1], seg, n, strict=True)])
         pts = pts[np.hypot(pts[:, 0] - pose.x, pts[:, 1] - pose.y) > ESCAPE_RADIUS]
-        return bool(np.any(self.costmap.cost_at(pts) >= INSCRIBED))
+        cost = self.costmap.cost_at(pts)
+        blocked = cost >= INSCRIBED
+        if getattr(self.planner, "allow_unknown", False):
+            blocked &= cost != NO_INFORMATION  # paths into the unknown are the plan, not a blockage
+        return bool(np.any(blocked))
 
     def _fail(self, err: Exception) -> tuple[NavStatus, Twist2, NavFeedback]:
         self.status = NavStatus.FAILED
         self.feedback.error = err
         self.feedback.message = f"{type(err).__name__}: {err}"
         self.controller.reset()
+        self.costmap.release()
         return self.status, Twist2(), self.feedback

@@ -106,7 +106,10 @@ def _endpoints(costmap: Costmap, weights: np.ndarray, start: Pose2, goal: Pose2,
         r0, r1 = max(sr - n, 0), min(sr + n + 1, weights.shape[0])
         c0, c1 = max(sc - n, 0), min(sc + n + 1, weights.shape[1])
         win = weights[r0:r1, c0:c1]
-        esc = ~np.isfinite(win) & (costmap.cost[r0:r1, c0:c1] == INSCRIBED)
+        # Only cells no closer to the obstacle than the start: a way out, never a short cut past what it grazes
+        # (after a bump the robot stands in the inflation of the mark, and the escape must not lead into it).
+        away = costmap.clearance[r0:r1, c0:c1] >= costmap.clearance[sr, sc] - 1e-6
+        esc = ~np.isfinite(win) & (costmap.cost[r0:r1, c0:c1] == INSCRIBED) & away
         win[esc] = ESCAPE_PENALTY
     gr, gc = (int(g[0, 0]), int(g[0, 1]))
     if not costmap.inside(g)[0] or not np.isfinite(weights[gr, gc]):

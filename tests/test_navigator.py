@@ -128,3 +128,24 @@ def test_a_map_correction_replans_at_once() -> None:
         nav.step(_obs(t, pose, Twist2(), pose, t, MAZE), grid, m2o.compose(pose), m2o)
         replans.append(nav.feedback.replans)
     assert replans == [1, 1, 1, 2, 2]  # a 1 cm correction is noise; 20 cm moves the robot against the map
+
+
+def test_a_goal_beyond_the_known_grid_is_reached_through_the_unknown() -> None:
+    # Only a 3 m × 3 m corner of the maze is mapped; the goal lies 5 m beyond it, behind a wall's end.
+    known = MapData(rasterise(MAZE, (10.0, 10.0), RES)[:60, :60], RES, (0.0, 0.0, 0.0))
+    goal = Pose2(3.0, 8.0, 0.0)
+    nav = Navigator()
+    nav.set_goal(goal, yaw_tolerance=math.inf)
+    pose, twist, status = Pose2(*MAZE_START, 0.0), Twist2(), NavStatus.RUNNING
+    trail = [pose]
+    for k in range(int(90.0 / DT)):
+        t = k * DT
+        status, cmd, fb = nav.step(_obs(t, pose, twist, pose, t, MAZE), known, pose, Pose2())
+        if status is not NavStatus.RUNNING:
+            break
+        twist, pose = cmd, unicycle(pose, cmd.v, cmd.omega, DT)
+        trail.append(pose)
+    assert status is NavStatus.SUCCEEDED, fb.message
+    xy = np.array([[p.x, p.y] for p in trail])
+    assert point_rect_distance(xy, MAZE).min() >= BASE_RADIUS  # walls seen only by the scan, never touched
+    assert nav.costmap.shape == (60, 60)  # back to the grid once the goal is reached
