@@ -152,6 +152,8 @@ class _MotionLeaf(_ReportsFailure):
 
     def on_running(self) -> Status:
         obs = self.observation()
+        if obs is None:  # the runner writes one every tick; only a misconfigured tree gets here
+            return self.fail("no_observation")
         nav = self.read(NAVIGATOR_KEY)
         pts = nav.scan_points_now(obs) if nav is not None else (obs.scan.points() if obs.scan else None)
         status, cmd = self.motion.step(obs.stamp, obs.odom.pose, pts)

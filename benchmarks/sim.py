@@ -81,6 +81,7 @@ def _unit_costs(world, seed: int, poses: list) -> tuple[float, float]:  # noqa: 
         robot.lidar.scan(pose, 0.0, rng)
         scans.append(time.perf_counter() - t)
         t = time.perf_counter()
+        assert robot.camera is not None, "the benchmark builds its robot with a camera"
         robot.camera.render(pose, 0.0, rng)
         images.append(time.perf_counter() - t)
     robot.close()

@@ -55,8 +55,7 @@ def render_grid(
     img[(grid != FREE) & (grid != UNKNOWN)] = WALL_BGR
     for seg in segments or []:
         img[seg.cells[:, 0], seg.cells[:, 1]] = segment_colour(seg.label)
-    img = cv2.resize(img, (w * scale, h * scale), interpolation=cv2.INTER_NEAREST)
-    img = np.ascontiguousarray(img[::-1])  # row 0 = lowest y at the bottom
+    img = np.ascontiguousarray(cv2.resize(img, (w * scale, h * scale), interpolation=cv2.INTER_NEAREST)[::-1])  # row 0 = lowest y at the bottom
 
     def px(r: float, c: float) -> tuple[int, int]:
         return int(round((c + 0.5) * scale)), int(round((h - r - 0.5) * scale))

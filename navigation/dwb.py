@@ -287,7 +287,7 @@ class DWB:
         c0 = float(costmap.clearance[rc0[0, 0], rc0[0, 1]]) if costmap.inside(rc0)[0] else math.inf
         r = costmap.inscribed_radius
         # Grazing already (a stale costmap, a localisation jump): only forbid getting closer.
-        return ((clear < r) & (clear < c0 - DEEPEN_EPS)).any(axis=1)
+        return np.asarray(((clear < r) & (clear < c0 - DEEPEN_EPS)).any(axis=1))
 
     def _worst_cost(self, traj: np.ndarray, pose: Pose2, costmap: Costmap) -> np.ndarray:
         k, t = traj.shape[:2]

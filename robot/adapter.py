@@ -38,8 +38,15 @@ class RobotAdapter(Protocol):
     while (kobuki's own watchdog does the same).
     """
 
-    clock: Clock
-    limits: RobotLimits
+    @property
+    def clock(self) -> Clock:
+        """The adapter's clock (read-only: an adapter keeps its own)."""
+        ...
+
+    @property
+    def limits(self) -> RobotLimits:
+        """The velocity limits commands are clipped to, and the robot's size."""
+        ...
 
     def observe(self) -> Observation:
         """One snapshot of all sensors and the time (never blocks for new data)."""

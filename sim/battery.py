@@ -19,6 +19,7 @@ Not an electrochemical model: no voltage sag, temperature or ageing.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 from homing.robot.turtlebot import (
     BATTERY_CAPACITY_AH,
@@ -59,7 +60,7 @@ _KEYS = ("capacity_ah", "percent", "idle_a", "drive_a_per_mps", "turn_a_per_radp
 def params_from_section(sec: Section, default: BatteryParams) -> BatteryParams:
     """Read one battery's parameters from a world file section (unknown keys are errors)."""
     sec.only(_KEYS)
-    kw = {}
+    kw: dict[str, Any] = {}
     for key in _KEYS:
         if sec.has(key):
             kw[key] = sec.number(key, hi=100.0 if key == "percent" else None,

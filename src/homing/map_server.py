@@ -156,9 +156,10 @@ def load_map(path: str | Path) -> MapData:
     else:
         import cv2
 
-        pixels = cv2.imread(str(img_path), cv2.IMREAD_GRAYSCALE)
-        if pixels is None:
+        decoded = cv2.imread(str(img_path), cv2.IMREAD_GRAYSCALE)
+        if decoded is None:
             raise UserError("cannot decode the map image", img_path)
+        pixels = np.asarray(decoded, dtype=np.uint8)
     p = pixels.astype(np.float64) / 255.0
     occupancy = p if negate else 1.0 - p
     grid = np.full(pixels.shape, UNKNOWN, dtype=np.int8)
@@ -177,7 +178,7 @@ def save_map(path: str | Path, data: MapData, image_name: str | None = None) -> 
     pixels = np.full(grid.shape, 205, dtype=np.uint8)
     pixels[grid == FREE] = 254
     pixels[grid >= 65] = 0
-    h, w = pixels.shape
+    h, w = map(int, pixels.shape)
     header = f"P5\n# CREATOR: homing {data.resolution:.3f} m/pix\n{w} {h}\n255\n".encode("ascii")
     atomic_write(yaml_path.parent / name, header + pixels.tobytes())
     ox, oy, oyaw = data.origin
