@@ -38,6 +38,7 @@ KIND_MARK = {
     "sequence": "→", "reactive_sequence": "⇢", "fallback": "?", "selector": "?", "reactive_fallback": "⁇",
     "reactive_selector": "⁇", "parallel": "⇉", "round_robin": "↻", "recovery": "⟲", "guard": "⛨",
 }  # fmt: skip
+RTF_WINDOW = 0.5  # [s] wall time over which the header's real-time factor is measured
 REFRESH_HZ = 8.0  # [Hz] redraws of the live view (real time)
 HEADER_LINES = 1
 FOOTER_MIN = 2  # feedback line and a rule
@@ -156,10 +157,14 @@ class LiveView:
         wall = time.monotonic()
         if not force and wall - self.last_draw < 1.0 / REFRESH_HZ and runner.mission.root.status == Status.RUNNING:
             return
-        if self.last_draw > 0 and wall > self.last_wall:
+        # Measure the pace over at least RTF_WINDOW of wall time: a forced redraw right
+        # after the previous one (the final frame) would otherwise read as ×0.
+        if self.last_draw > 0 and wall - self.last_wall >= RTF_WINDOW:
             self.rtf = (runner.now - self.last_sim) / (wall - self.last_wall)
-        self.last_draw = self.last_wall = wall
-        self.last_sim = runner.now
+            self.last_wall, self.last_sim = wall, runner.now
+        elif self.last_draw <= 0:
+            self.last_wall, self.last_sim = wall, runner.now
+        self.last_draw = wall
         self.live.update(self.render(runner), refresh=True)
 
     def render(self, runner: Runner) -> Group:

@@ -59,3 +59,16 @@ def test_ci_runs_the_readme_test_command() -> None:
     ci = (REPO / ".ci" / "run").read_text()
     command = next(line for line in ci.splitlines() if line.startswith("python3 -m venv"))
     assert command in readme
+
+
+def test_readme_mission_example_compiles(tmp_path) -> None:
+    import re
+
+    from homing.missions.compiler import compile_mission
+
+    block = re.search(r"```yaml\n(.*?)```", (REPO / "README.md").read_text(), re.S)
+    assert block is not None, "the README shows a mission"
+    path = tmp_path / "readme.yaml"
+    path.write_text(block.group(1))
+    mission = compile_mission(path)
+    assert {spec.name for spec, _ in mission.services} == {"grid_slam", "navigation"}
