@@ -22,9 +22,6 @@ __all__ = ["Fault", "Patch", "SimRobot", "Tag", "World", "load_world"]
 
 def __getattr__(name: str) -> Any:
     if name == "SimRobot":
-        from homing.sim.quiet import import_pybullet
-
-        import_pybullet()  # first, so that no module below prints pybullet's banner
         from homing.sim.robot import SimRobot
 
         return SimRobot

@@ -30,12 +30,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pybullet as p
 from homing.robot.frames import R_BODY_FROM_OPTICAL, homogeneous
 from homing.robot.turtlebot import CAMERA_VFOV
 from homing.robot.types import CameraImage, CameraInfo, Pose2
+from homing.sim.quiet import import_pybullet
 from homing.sim.scene import Scene
 from homing.sim.tags import Tag
+
+p = import_pybullet()
 
 CAMERA_POSE_XYZ = (0.10, 0.0, 0.30)  # [m] optical centre in base_link
 WIDTH, HEIGHT = 320, 240  # [px] enough for tags up to ~3 m (DESIGN.md)
