@@ -239,10 +239,16 @@ def _finish(costmap: Costmap, weights: np.ndarray, cells: np.ndarray, start: Pos
 
 
 # -- the planners -----------------------------------------------------------------------
-class DijkstraPlanner:
-    """Dijkstra over the 8-connected cell graph (scipy.sparse.csgraph), √2 diagonals."""
+class GridPlanner:
+    """What every grid planner is configured with; subclasses implement ``plan``.
 
-    name = "dijkstra"
+    ``cost_weight`` scales how much the inflation cost lengthens a cell,
+    ``allow_unknown`` lets paths cross unknown cells (Nav2's meaning),
+    ``goal_tolerance`` [m] accepts a free cell that near an occupied goal, and
+    ``smooth`` shortens the grid path by string pulling.
+    """
+
+    name = ""
 
     def __init__(self, cost_weight: float = COST_WEIGHT, allow_unknown: bool = True,
                  goal_tolerance: float = 0.0, smooth: bool = True) -> None:
@@ -250,6 +256,12 @@ class DijkstraPlanner:
         self.allow_unknown = allow_unknown
         self.goal_tolerance = goal_tolerance  # [m]
         self.smooth = smooth
+
+
+class DijkstraPlanner(GridPlanner):
+    """Dijkstra over the 8-connected cell graph (scipy.sparse.csgraph), √2 diagonals."""
+
+    name = "dijkstra"
 
     def plan(self, costmap: Costmap, start: Pose2, goal: Pose2) -> np.ndarray:
         w = traversal_weights(costmap, self.cost_weight, self.allow_unknown)
@@ -291,17 +303,10 @@ def grid_graph(weights: np.ndarray) -> tuple[coo_matrix, np.ndarray, np.ndarray]
     return graph.tocsr(), index, cells
 
 
-class FastMarchingPlanner:
+class FastMarchingPlanner(GridPlanner):
     """Travel time from the goal by fast marching (scikit-fmm), speed = 1/weight; descend from the start."""
 
     name = "fmm"
-
-    def __init__(self, cost_weight: float = COST_WEIGHT, allow_unknown: bool = True,
-                 goal_tolerance: float = 0.0, smooth: bool = True) -> None:
-        self.cost_weight = cost_weight
-        self.allow_unknown = allow_unknown
-        self.goal_tolerance = goal_tolerance  # [m]
-        self.smooth = smooth
 
     def plan(self, costmap: Costmap, start: Pose2, goal: Pose2) -> np.ndarray:
         w = traversal_weights(costmap, self.cost_weight, self.allow_unknown)
@@ -355,17 +360,10 @@ def _descend(t: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) -> np
     return np.array(path)
 
 
-class AStarPlanner:
+class AStarPlanner(GridPlanner):
     """pyastar2d's A* on the 8-connected grid (its diagonal steps cost as much as straight ones)."""
 
     name = "astar"
-
-    def __init__(self, cost_weight: float = COST_WEIGHT, allow_unknown: bool = True,
-                 goal_tolerance: float = 0.0, smooth: bool = True) -> None:
-        self.cost_weight = cost_weight
-        self.allow_unknown = allow_unknown
-        self.goal_tolerance = goal_tolerance  # [m]
-        self.smooth = smooth
 
     def plan(self, costmap: Costmap, start: Pose2, goal: Pose2) -> np.ndarray:
         w = traversal_weights(costmap, self.cost_weight, self.allow_unknown)
