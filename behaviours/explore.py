@@ -14,8 +14,9 @@ adapter time, at once when the navigator reaches or fails its goal, and never
 otherwise; the other ticks cost one navigator step.
 
 Failures: a goal the navigator cannot plan to (``no_path``,
-``goal_occupied``) is blacklisted and exploration goes on with the next one,
-as explore_lite does. A failure of the robot itself (``blocked``,
+``goal_occupied``) or that pressed the bumpers too often on the way
+(``bumped``, the navigator's TooManyBumps) is blacklisted and exploration
+goes on with the next one, as explore_lite does. A failure of the robot itself (``blocked``,
 ``no_progress``, ``start_occupied``, ``invalid_path``) blacklists the goal too,
 then ends the leaf with FAILURE and that reason, so a mission's recovery node
 (clear costmap, spin, back up, wait) can act before it starts again; the
@@ -51,7 +52,7 @@ POSE_KEY = "/map/pose"
 MAP_TO_ODOM_KEY = "/map/map_to_odom"
 GOAL_KEY = "/explore/goal"
 DECIDE_PERIOD = 1.0  # [s] adapter time between decisions while driving (strategies replan no faster)
-GOAL_REASONS = ("no_path", "goal_occupied")  # the goal's fault: blacklist it and go on
+GOAL_REASONS = ("no_path", "goal_occupied", "bumped")  # the goal's fault (bumped: TooManyBumps near it): blacklist it and go on
 START_PATIENCE = 3.0  # [s] the robot's cell may be blocked on the costmap this long before the leaf fails
 NO_FRONTIER_PERIOD = 2.0  # [s] NoFrontierLeft recomputes at most this often on a changing grid
 

@@ -5,7 +5,9 @@ Shared by every strategy, so that they differ only in their rule:
 - a new goal is chosen when the robot is within ``reach_radius`` (about one
   robot diameter, as the thesis) of the current one, when navigation
   reports failure, when the goal becomes unreachable, and — for strategies
-  that ask — every ``replan_period`` or once the goal's frontier is seen;
+  that ask — every ``replan_period`` or once the goal's frontier is seen
+  (the strategy's ``goal_spent(grid, resolution, cell)`` when it has one,
+  else no unknown cell within ``EXPLORED_RADIUS`` of the goal);
 - a goal whose travel distance has not shrunk by ``PROGRESS_STEP`` for
   ``progress_timeout`` [s] is blacklisted (explore_lite: 30 s), as is one
   navigation failed on; blacklisted points exclude goals within
@@ -130,7 +132,11 @@ class Explorer:
         elif now - self._last_progress > self.progress_timeout:
             self.blacklist.append((self.goal.x, self.goal.y))
             return True
-        if self.strategy.drop_explored:
+        spent = getattr(self.strategy, "goal_spent", None)
+        if self.strategy.drop_explored and spent is not None:
+            if spent(grid.data, grid.resolution, (r, c)):
+                return True
+        elif self.strategy.drop_explored:
             k = int(math.ceil(EXPLORED_RADIUS / grid.resolution))
             patch = grid.data[max(r - k, 0) : r + k + 1, max(c - k, 0) : c + k + 1]
             if not (patch == UNKNOWN).any():

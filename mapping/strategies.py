@@ -24,17 +24,23 @@ choose again live in :mod:`homing.mapping.explorer`, shared by all.
   then plans to the centroid; here the centroid is snapped to the nearest
   reachable cell within ``CENTROID_TOLERANCE`` (else the frontier is skipped,
   as move_base would abort it and explore_lite blacklist it).
-- ``gain_rate`` (default) — for every reachable goal cell of every smoothed
-  segment: unknown area within sensor reach of the cell (information gain,
-  m²) divided by the travel time there (path length / speed + turning time
-  + a fixed overhead + the time lost crawling near walls: a goal cell close
-  to a wall drags the end of the path along it, where the controller slows
-  down, so of two cells of one frontier the one in the open wins). The gain
-  is ray cast (:func:`visible_unknown`), so unknown space behind a mapped
-  wall does not draw the robot to the wall; goals that would reveal less than
-  ``MIN_GAIN`` are ignored, so the run ends instead of touring crumbs. Keeps
-  its current goal unless another scores ``HYSTERESIS`` times better, so it
-  does not oscillate between two goals.
+- ``gain_rate`` (default) — information gain per travel time. Candidate
+  goals are the reachable cells of every smoothed segment plus viewpoints
+  standing back from them in known free space (a ``SETBACK_STRIDE``
+  lattice within ``SETBACK``: the lidar sees a frontier's unknown from
+  there without driving to its edge, and the robot stays in the open where
+  the controller runs at full speed). Score = unknown area the lidar would
+  see from the goal within ``VIEW_RADIUS`` (ray cast, :func:`visible_unknown`,
+  so unknown space behind a mapped wall does not draw the robot to it)
+  divided by the travel time there: the planner's travel distance / speed
+  + turning time + a fixed overhead + the time lost crawling near walls.
+  Goals revealing less than ``MIN_GAIN`` are ignored while better ones exist,
+  then ones revealing ``CRUMB_GAIN`` are still visited, so the run does not
+  end short of the whole map. Lookahead: a goal is given up (and the next
+  chosen while the robot is still moving) as soon as it would reveal less
+  than ``MIN_GAIN`` (:meth:`GainRate.goal_spent`). Hysteresis: keeps its
+  current goal unless another scores ``HYSTERESIS`` times better, so it does
+  not oscillate between two goals.
 """
 
 from __future__ import annotations
@@ -70,9 +76,14 @@ SLOW_GAP = 0.30  # [m] a controller slows down when its footprint is closer than
 SLOW_SPEED = 0.15  # [m/s] the slowest it goes there
 SLOW_STRETCH = 1.5  # [m] of the path's end that runs as close to the walls as its goal cell
 MAX_CANDIDATES = 60  # cells evaluated per segment by gain_rate (evenly spaced)
-MAX_TOTAL_CANDIDATES = 600  # and at most this many in all (the gain is ray cast from each)
 GAIN_RAYS = 48  # rays cast from each candidate to count the unknown area it would see
 MIN_GAIN = 0.75  # [m²] a goal that would reveal less is not worth the trip (the thesis's "drop small frontiers")
+CRUMB_GAIN = 0.2  # [m²] with no goal worth MIN_GAIN left, gain_rate still visits ones revealing this much
+VIEW_RADIUS = 5.0  # [m] gain_rate counts what the lidar (6 m) would see from a goal, less a margin for sparse far rays
+SETBACK = 1.5  # [m] gain_rate also tries viewpoints in known free space this far back from a frontier
+SETBACK_STRIDE = 0.3  # [m] lattice spacing of those viewpoints
+VIEW_CANDIDATES = 320  # gain_rate evaluates at most this many goals (each ray cast VIEW_RAYS × VIEW_RADIUS; ~50 ms)
+VIEW_RAYS = 32  # rays per goal: 1 m apart at VIEW_RADIUS, enough for room-sized unknown
 
 
 @dataclass
@@ -278,12 +289,28 @@ def visible_unknown(grid: np.ndarray, resolution: float, cells: np.ndarray, radi
     # Off the grid reads as wall: pad by the reach, then gather through flat indices (no bounds checks).
     pad = n_s + 1
     padded = np.pad(grid, pad, constant_values=OCCUPIED_AT)
-    rows = np.rint(cells[:, 0, None, None] + dr[None]).astype(np.int64) + pad  # (N, A, S)
-    cols = np.rint(cells[:, 1, None, None] + dc[None]).astype(np.int64) + pad
+    # floor(x + 0.5), not rint: rint rounds halves to even, so an axis-aligned ray (samples at k + 0.5 cells)
+    # would skip every odd cell and see through a one-cell wall.
+    rows = np.floor(cells[:, 0, None, None] + dr[None] + 0.5).astype(np.int64) + pad  # (N, A, S)
+    cols = np.floor(cells[:, 1, None, None] + dc[None] + 0.5).astype(np.int64) + pad
     v = padded.ravel()[rows * padded.shape[1] + cols]
     open_ray = np.logical_and.accumulate(v < OCCUPIED_AT, axis=2)
     seen = open_ray & (v == UNKNOWN)
     return (seen * (r * (2 * np.pi / rays) * resolution)[None, None, :]).sum(axis=(1, 2))
+
+
+def viewpoints(ctx: GoalContext, frontier: np.ndarray) -> np.ndarray:
+    """(K, 2) reachable, non-excluded free cells on a ``SETBACK_STRIDE`` lattice within ``SETBACK`` [m] of the
+    ``frontier`` cells (N, 2): goals from which the lidar sees a frontier's unknown without driving to its edge."""
+    h, w = ctx.grid.shape
+    mark = np.full((h, w), 255, np.uint8)
+    mark[frontier[:, 0], frontier[:, 1]] = 0
+    near = cv2.distanceTransform(mark, cv2.DIST_L2, 3) * ctx.resolution <= SETBACK
+    stride = max(1, int(round(SETBACK_STRIDE / ctx.resolution)))
+    lattice = np.zeros((h, w), bool)
+    lattice[::stride, ::stride] = True
+    ok = near & lattice & np.isfinite(ctx.distance) & ~ctx.excluded & (ctx.grid == FREE)
+    return np.argwhere(ok).astype(np.int64)
 
 
 def _wall_gap(grid: np.ndarray, resolution: float, robot_radius: float) -> np.ndarray:
@@ -302,6 +329,9 @@ class GainRate:
     replan_period: float | None = 2.0  # [s]
     drop_explored = True
 
+    def __init__(self) -> None:
+        self._spent_below = MIN_GAIN  # [m²] the current goal is given up when it would reveal less
+
     def choose(self, ctx: GoalContext) -> GoalChoice | None:
         segs = _allowed(smoothed_frontiers(ctx.grid, ctx.resolution, ctx.robot_radius), ctx)
         if not segs:
@@ -314,23 +344,40 @@ class GainRate:
             owners.append(np.full(len(cells[-1]), k))
         cand = np.concatenate(cells)
         owner = np.concatenate(owners)
-        if len(cand) > MAX_TOTAL_CANDIDATES:
-            keep = np.linspace(0, len(cand) - 1, MAX_TOTAL_CANDIDATES).astype(np.int64)
+        back = viewpoints(ctx, cand)
+        if len(back):
+            # Each set-back viewpoint belongs to the segment of its nearest frontier cell (for pictures).
+            near = np.argmin((back[:, None, 0] - cand[None, :, 0]) ** 2 + (back[:, None, 1] - cand[None, :, 1]) ** 2,
+                             axis=1)
+            cand, owner = np.concatenate([cand, back]), np.concatenate([owner, owner[near]])
+        if len(cand) > VIEW_CANDIDATES:
+            keep = np.linspace(0, len(cand) - 1, VIEW_CANDIDATES).astype(np.int64)
             cand, owner = cand[keep], owner[keep]
-        gain = visible_unknown(ctx.grid, ctx.resolution, cand)
+        gain = visible_unknown(ctx.grid, ctx.resolution, cand, VIEW_RADIUS, VIEW_RAYS)
         score = np.where(gain >= MIN_GAIN, self._score(ctx, cand, gain), -np.inf)
+        if not np.isfinite(score).any():
+            # Only crumbs left: still visit those the lidar would clear (quitting short of the whole map is
+            # explore_lite's "ends early"), but never ones it cannot see into.
+            score = np.where(gain >= CRUMB_GAIN, self._score(ctx, cand, gain), -np.inf)
         i = int(np.argmax(score))
         if not np.isfinite(score[i]):
-            return None  # only crumbs left: exploration is over
+            return None  # nothing the lidar could still reveal: exploration is over
         best, best_score = (int(cand[i, 0]), int(cand[i, 1])), float(score[i])
         if ctx.current_goal is not None:
             cur = np.array([ctx.current_goal])
-            cur_score = float(self._score(ctx, cur, visible_unknown(ctx.grid, ctx.resolution, cur))[0])
-            near = np.hypot(cand[:, 0] - cur[0, 0], cand[:, 1] - cur[0, 1]) * ctx.resolution < 0.5
-            if near.any() and np.isfinite(cur_score) and best_score < HYSTERESIS * cur_score:
-                j = int(np.flatnonzero(near)[np.argmax(score[near])])
-                return GoalChoice(ctx.current_goal, segs[int(owner[j])], segs, cur_score)
+            cur_gain = visible_unknown(ctx.grid, ctx.resolution, cur, VIEW_RADIUS, VIEW_RAYS)
+            cur_score = float(self._score(ctx, cur, cur_gain)[0])
+            if cur_gain[0] >= self._spent_below and np.isfinite(cur_score) and best_score < HYSTERESIS * cur_score:
+                d2 = (cand[:, 0] - cur[0, 0]) ** 2 + (cand[:, 1] - cur[0, 1]) ** 2
+                return GoalChoice(ctx.current_goal, segs[int(owner[int(np.argmin(d2))])], segs, cur_score)
+        self._spent_below = min(MIN_GAIN, 0.5 * float(gain[i]))
         return GoalChoice(best, segs[int(owner[i])], segs, best_score)
+
+    def goal_spent(self, grid: np.ndarray, resolution: float, cell: tuple[int, int]) -> bool:
+        """True when the lidar would see less than ``MIN_GAIN`` of unknown from ``cell`` (half the gain it was chosen
+        for, if that was a crumb): give the goal up and go on to the next before arriving (lookahead)."""
+        gain = visible_unknown(grid, resolution, np.array([cell]), VIEW_RADIUS, VIEW_RAYS)[0]
+        return bool(gain < self._spent_below)
 
     def _score(self, ctx: GoalContext, cells: np.ndarray, gain: np.ndarray) -> np.ndarray:
         """gain (N,) [m²] of ``cells`` (N, 2) over the estimated time to get there [s]."""

@@ -7,6 +7,7 @@ from pathlib import Path
 import cv2
 import pytest
 from homing.mapping.map_io import save_grid
+from homing.mapping.strategies import SETBACK
 from homing.missions.cli import main
 
 from tests.test_explore import _two_openings
@@ -25,10 +26,12 @@ def test_map_show_draws_each_strategy_choice(tmp_path: Path, capsys: pytest.Capt
     lines = capsys.readouterr().out.splitlines()
     goals = [ln for ln in lines if ln.strip().startswith(("nearest:", "gain_rate:"))]
     assert len(goals) == 2
-    # Both goals lie in one of the room's two openings (x ≈ 0 or 4 m).
+    # Both goals lie at one of the room's two openings (x ≈ 0 or 4 m); gain_rate's may be a viewpoint standing
+    # back from it by up to SETBACK.
     for ln in goals:
         x = float(ln.split("goal (")[1].split(",")[0])
-        assert min(abs(x), abs(x - 4.0)) < 0.4
+        slack = SETBACK if ln.strip().startswith("gain_rate") else 0.0  # [m]
+        assert min(abs(x), abs(x - 4.0)) < 0.4 + slack
     # The goal (green) and the robot (red) are drawn.
     assert ((img[:, :, 1] > 150) & (img[:, :, 0] < 60) & (img[:, :, 2] < 60)).any()
     assert ((img[:, :, 2] > 200) & (img[:, :, 0] < 60) & (img[:, :, 1] < 60)).any()

@@ -6,7 +6,15 @@ import numpy as np
 from homing.mapping.explorer import Explorer
 from homing.mapping.frontier import raw_frontiers, smoothed_frontiers
 from homing.mapping.grid import OccupancyGrid
-from homing.mapping.strategies import GoalContext, make_strategy
+from homing.mapping.strategies import (
+    MIN_GAIN,
+    SETBACK,
+    VIEW_RADIUS,
+    VIEW_RAYS,
+    GoalContext,
+    make_strategy,
+    visible_unknown,
+)
 from homing.robot import Pose2
 
 from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData
@@ -90,8 +98,34 @@ def test_explore_lite_cost_and_centroid():
 def test_gain_rate_prefers_the_big_unknown_over_the_near_pocket():
     ctx = _ctx()
     choice = make_strategy("gain_rate").choose(ctx)
-    assert choice is not None and choice.cell[1] > 140
-    assert np.isfinite(ctx.distance[choice.cell])
+    assert choice is not None and choice.segment is not None and choice.segment.cells[:, 1].min() > 140
+    # The goal may be a viewpoint standing back from the frontier, never more than SETBACK from it.
+    assert choice.cell[1] >= choice.segment.cells[:, 1].min() - SETBACK / RES - 1
+    assert np.isfinite(ctx.distance[choice.cell]) and ctx.grid[choice.cell] == FREE
+
+
+def test_gain_rate_viewpoint_sees_more_than_the_frontier_edge_in_a_corridor_end():
+    """In a 2 m corridor ending in the unknown, a cell on the frontier edge sees the unknown fan past the end;
+    the viewpoint gain_rate picks sees at least as much as the best frontier cell, at less travel."""
+    ctx = _ctx()
+    strat = make_strategy("gain_rate")
+    choice = strat.choose(ctx)
+    assert choice is not None
+    edge = choice.segment.cells
+    gain_edge = visible_unknown(ctx.grid, RES, edge, VIEW_RADIUS, VIEW_RAYS).max()
+    gain_goal = visible_unknown(ctx.grid, RES, np.array([choice.cell]), VIEW_RADIUS, VIEW_RAYS)[0]
+    assert gain_goal >= 0.5 * gain_edge and gain_goal >= MIN_GAIN
+    assert ctx.distance[choice.cell] <= ctx.distance[edge[:, 0], edge[:, 1]].min() + 1e-6
+
+
+def test_gain_rate_goal_is_spent_once_nothing_unknown_is_in_view():
+    g, robot = _corridor_world()
+    strat = make_strategy("gain_rate")
+    assert not strat.goal_spent(g, RES, (60, 140))  # the open east end is 0.5 m away
+    walled = g.copy()
+    walled[40:80, 149] = OCCUPIED  # close the east end and the pocket: nothing left to see from there
+    walled[25, 30:61] = OCCUPIED
+    assert strat.goal_spent(walled, RES, (60, 140))
 
 
 def test_explorer_blacklists_a_goal_without_progress_and_chooses_again():
