@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import Any
 
 from homing.benchmarks.common import print_table, write_json
+from homing.robot import Pose2
 
 STRATEGY_ORDER = ("nearest", "largest_closest", "largest_random", "largest_random_raw", "explore_lite", "gain_rate")
 SHARED_WORLDS = Path(__file__).resolve().parent.parent.parent / "shared" / "worlds"
@@ -103,6 +104,19 @@ def session_efficiency(area95: float, t95: float, final_area: float, session: fl
     return final_area / session
 
 
+@dataclass
+class _Track:
+    """What one run's evaluation accumulates tick by tick from the simulator's truth."""
+
+    last: Pose2
+    path: float = 0.0  # [m] true path length
+    far: float = 0.0  # [m] farthest true distance from the start
+    bumps: int = 0  # ticks with a bumper pressed
+    next_cov: float = COVERAGE_PERIOD  # [s] when coverage is next sampled
+    t95: float = math.nan  # [s] first time coverage reached the target
+    area95: float = math.nan  # [m²] area explored then
+
+
 def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map: str | None = None) -> RunResult:
     """One run through the real mission and runner; reads the simulator's truth only to score it."""
     import numpy as np
@@ -118,26 +132,25 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
     start_truth = robot.truth_pose()
     odom0 = robot.observe().odom.pose
     world_from_map = start_truth.compose(odom0.inverse())  # map = odom at the first scan (grid_slam)
-    track = {"last": start_truth, "path": 0.0, "far": 0.0, "bumps": 0, "next_cov": COVERAGE_PERIOD, "t95": math.nan,
-             "area95": math.nan}
+    track = _Track(last=start_truth)
 
     def on_tick(runner: Runner) -> None:
         p = robot.truth_pose()
-        track["path"] += p.distance_to(track["last"])
-        track["last"] = p
-        track["far"] = max(track["far"], p.distance_to(start_truth))
+        track.path += p.distance_to(track.last)
+        track.last = p
+        track.far = max(track.far, p.distance_to(start_truth))
         obs = runner.observation
         if obs is not None and obs.bumpers.any():
-            track["bumps"] += 1
+            track.bumps += 1
         t = runner.now - runner.start
-        if t >= track["next_cov"] and math.isnan(track["t95"]):
-            track["next_cov"] += COVERAGE_PERIOD
+        if t >= track.next_cov and math.isnan(track.t95):
+            track.next_cov += COVERAGE_PERIOD
             grid = runner.read("/map/grid")
             if grid is None:
                 return
             cov = coverage(grid, world.map, (start_truth.x, start_truth.y), world_from_map)
             if cov.coverage >= COVERAGE_TARGET:
-                track["t95"], track["area95"] = t, cov.area
+                track.t95, track.area95 = t, cov.area
 
     runner = Runner(mission, robot, seed=seed, until=minutes * 60.0 + 1.0, on_tick=on_tick)
     if "/map/grid" not in runner.bb.remappings:
@@ -147,13 +160,13 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
     finally:
         robot.close()
     grid = runner.read("/map/grid")
-    explore = next((n for n in mission.root.iterate() if type(n).__name__ == "Explore"), None)
+    explore: Any = next((n for n in mission.root.iterate() if type(n).__name__ == "Explore"), None)
     cov = coverage(grid, world.map, (start_truth.x, start_truth.y), world_from_map)
-    if math.isnan(track["t95"]) and cov.coverage >= COVERAGE_TARGET:
-        track["t95"], track["area95"] = result.time, cov.area
+    if math.isnan(track.t95) and cov.coverage >= COVERAGE_TARGET:
+        track.t95, track.area95 = result.time, cov.area
     done = result.reason == "success" and explore is not None and explore.status.value == "SUCCESS"
     explore_time = max(result.time if done else min(result.time, minutes * 60.0), 1e-9)
-    efficiency = session_efficiency(track["area95"], track["t95"], cov.area, minutes * 60.0)
+    efficiency = session_efficiency(track.area95, track.t95, cov.area, minutes * 60.0)
     if save_map:
         from homing.mapping.map_io import save_grid
 
@@ -162,9 +175,9 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
     return RunResult(
         world=world_label(world_spec), strategy=strategy, seed=seed,
         efficiency=efficiency, area=cov.area, coverage=cov.coverage,
-        farthest=track["far"], path_length=track["path"], explore_time=explore_time, t95=track["t95"],
-        area95=track["area95"],
-        done=done, bumps=int(track["bumps"]), nav_failures=len(explore.failures) if explore is not None else 0,
+        farthest=track.far, path_length=track.path, explore_time=explore_time, t95=track.t95,
+        area95=track.area95,
+        done=done, bumps=int(track.bumps), nav_failures=len(explore.failures) if explore is not None else 0,
         goals=int(steps), agreement=float(np.float64(cov.agreement)), wall=result.wall, rtf=result.rtf,
     )  # fmt: skip
 

@@ -120,8 +120,8 @@ class Explorer:
         assert self.goal is not None
         if pose.distance_to(self.goal) <= self.reach_radius:
             return True  # reached: choose the next one (thesis)
-        r, c = grid.world_to_cell(self.goal.x, self.goal.y)
-        r, c = int(r), int(c)
+        cell = grid.world_to_cell(self.goal.x, self.goal.y)
+        r, c = int(cell[0]), int(cell[1])
         if not grid.in_bounds(np.int64(r), np.int64(c)) or not np.isfinite(distance[r, c]):
             self.blacklist.append((self.goal.x, self.goal.y))
             return True

@@ -85,18 +85,18 @@ class _Field:
 def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: float, sigma: float = SIGMA) -> _Field:
     """The likelihood field of ``grid`` on the square crop of half-size ``half`` [m] around ``centre``."""
     res = grid.resolution
-    r0, c0 = grid.world_to_cell(centre[0] - half, centre[1] - half)
-    r1, c1 = grid.world_to_cell(centre[0] + half, centre[1] + half)
+    lo = grid.world_to_cell(centre[0] - half, centre[1] - half)
+    hi = grid.world_to_cell(centre[0] + half, centre[1] + half)
     h, w = grid.shape
-    r0, c0 = max(int(r0), 0), max(int(c0), 0)
-    r1, c1 = min(int(r1) + 1, h), min(int(c1) + 1, w)
+    r0, c0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    r1, c1 = min(int(hi[0]) + 1, h), min(int(hi[1]) + 1, w)
     if r1 <= r0 or c1 <= c0:
         return _Field(np.zeros((1, 1), np.float32), grid.origin, res)
     occ = grid.data[r0:r1, c0:c1] == OCCUPIED
     # distanceTransform measures to the nearest zero pixel: zeros at walls.
     dist = cv2.distanceTransform((~occ).astype(np.uint8), cv2.DIST_L2, 5) * res
     values = np.exp(-0.5 * (np.minimum(dist, 10 * sigma) / sigma) ** 2).astype(np.float32)
-    origin = (grid.origin[0] + c0 * res, grid.origin[1] + r0 * res)
+    origin = (float(grid.origin[0] + c0 * res), float(grid.origin[1] + r0 * res))
     known = grid.data[r0:r1, c0:c1] != UNKNOWN
     return _Field(values, origin, res, known)
 
