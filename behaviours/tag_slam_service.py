@@ -22,10 +22,13 @@ present: its map keys then override grid_slam's.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
-from homing.behaviours.registry import Param, register_service
+from homing.behaviours.base import HomingBehaviour
+from homing.behaviours.registry import Param, register, register_service
 from homing.robot import Observation, Pose2, RobotAdapter
+from py_trees.common import Status
 
 TAGS_KEY = "/perception/tags"
 LANDMARKS_KEY = "/slam/landmarks"
@@ -35,6 +38,7 @@ GRID_KEY = "/map/grid"
 REBUILD_SHIFT = 0.03  # [m] a keyframe moved this far since drawn → rebuild the grid
 REBUILD_PERIOD = 5.0  # [s] adapter time between checks for a rebuild
 REBUILD_BATCH = 25  # scans drawn into the grid being rebuilt per tick
+TOUR_GOAL_KEY = "/tag_tour/goal"
 
 
 @register_service(
@@ -133,3 +137,89 @@ class TagSlamService:
 
     def shutdown(self) -> None:
         self.slam.flush()
+
+
+@register("NextTagView")
+class NextTagView(HomingBehaviour):
+    """Write a view pose in front of the least-visited mapped tag (nearest first among equals) and SUCCEED.
+
+    The tag tour after exploration (thesis ch. 4: re-observing landmarks is
+    what closes loops): the goal is ``distance`` [m] out from the tag's
+    optimised pose in ``map`` (``/slam/landmarks``), facing it, for a
+    ``NavigateToPose`` reading ``goal_key``. FAILURE while no tag is mapped
+    or no map pose is known. Picks from the robot's own map only (no truth);
+    not for driving *to* a tag (the goal is in front of it, not on it).
+    """
+
+    PARAMS = (
+        Param("distance", float, 1.0, "m", "how far in front of the tag the view pose is"),
+        Param("goal_key", str, TOUR_GOAL_KEY, doc="blackboard key the Pose2 goal is written to"),
+    )
+    READS = (LANDMARKS_KEY, POSE_KEY)
+    WRITES = ("$goal_key",)
+
+    def __init__(self, name: str, distance: float = 1.0, goal_key: str = TOUR_GOAL_KEY) -> None:
+        self.goal_key = goal_key
+        super().__init__(name)
+        self.distance = float(distance)  # [m]
+        self.visits: dict[int, int] = {}  # tag id → times chosen
+
+    def update(self) -> Status:
+        tags: dict[int, Pose2] | None = self.read(LANDMARKS_KEY)
+        here: Pose2 | None = self.read(POSE_KEY)
+        if not tags or here is None:
+            self.feedback_message = "no mapped tag yet"
+            return Status.FAILURE
+        views = {i: p.compose(Pose2(self.distance, 0.0, math.pi)) for i, p in tags.items()}
+        best = min(views, key=lambda i: (self.visits.get(i, 0), here.distance_to(views[i]), i))
+        self.visits[best] = self.visits.get(best, 0) + 1
+        self.write(self.goal_key, views[best])
+        self.feedback_message = f"tag {best} (visit {self.visits[best]})"
+        return Status.SUCCESS
+
+
+@register("NextWallView")
+class NextWallView(HomingBehaviour):
+    """Write the nearest wall view pose not yet visited this lap (:mod:`homing.perception.tag_search`) and SUCCEED.
+
+    The search half of the tag tour: frontier exploration ends once the
+    lidar has mapped the walls, long before the camera has seen them. Goals
+    come from the robot's own grid (``/map/grid``) and pose; when every view
+    has been visited a new lap starts. FAILURE while no grid or pose is known
+    or the grid has no view pose.
+    """
+
+    PARAMS = (
+        Param("distance", float, 1.2, "m", "how far from the wall the view pose is"),
+        Param("spacing", float, 2.0, "m", "between view poses along a wall"),
+        Param("goal_key", str, TOUR_GOAL_KEY, doc="blackboard key the Pose2 goal is written to"),
+    )
+    READS = (GRID_KEY, POSE_KEY)
+    WRITES = ("$goal_key",)
+
+    def __init__(self, name: str, distance: float = 1.2, spacing: float = 2.0, goal_key: str = TOUR_GOAL_KEY) -> None:
+        self.goal_key = goal_key
+        super().__init__(name)
+        self.distance, self.spacing = float(distance), float(spacing)  # [m]
+        self.visited: list[Pose2] = []
+        self.laps = 0
+
+    def update(self) -> Status:
+        from homing.perception.tag_search import next_view, wall_views
+
+        grid, here = self.read(GRID_KEY), self.read(POSE_KEY)
+        if grid is None or here is None:
+            self.feedback_message = "no map yet"
+            return Status.FAILURE
+        views = wall_views(grid.data, grid.resolution, grid.origin, self.distance, self.spacing)
+        goal = next_view(views, here, self.visited, self.spacing / 2)
+        if goal is None and views:
+            self.visited, self.laps = [], self.laps + 1
+            goal = next_view(views, here, self.visited, self.spacing / 2)
+        if goal is None:
+            self.feedback_message = "no wall to look at"
+            return Status.FAILURE
+        self.visited.append(goal)
+        self.write(self.goal_key, goal)
+        self.feedback_message = f"view {len(self.visited)}/{len(views)} (lap {self.laps + 1})"
+        return Status.SUCCESS

@@ -14,8 +14,13 @@ error (ATE, RMS after the best fit) and iSAM2's time per keyframe update.
 Scenarios: ``loop`` — a driven loop past every tag and back to the dock
 (the thesis's tele-operated run; the driver plans on the true map and steers
 on the true pose, as a person with a joystick would); ``explore`` — the
-autonomous exploration mission (``missions/explore.yaml``) for ``--minutes``
-of simulated time, the mappers watching every tick; ``cycles`` — several
+autonomous exploration mission (``missions/explore.yaml`` with the
+``tag_slam`` service added after ``grid_slam``) for ``--minutes`` of
+simulated time; a world explored sooner (the lab: ~2 min) is then toured by
+the robot itself from its own maps — alternately the next stretch of wall
+its camera has not faced and the least-visited mapped tag — until the time
+is up (``--no-tour``: stop when exploration ends and measure
+that); ``cycles`` — several
 dock cycles in one map (undock, tour a share of the tags, return, drive onto
 the dock, charge), driven like the loop. Every mapper sees the same tag
 measurements (:class:`homing.perception.tag_wall.TagPerception`: the
@@ -117,8 +122,11 @@ class Collector:
     placed_grid: dict[int, list[Pose2]] = field(default_factory=dict)
     keyframe_truth: list[Pose2] = field(default_factory=list)
     world_from_odom0: Pose2 | None = None
+    external: bool = False  # tags, grid pose and SLAM come from a mission's services (see step_external)
 
     def __post_init__(self) -> None:
+        if self.external:
+            return
         from homing.mapping.grid_slam import GridSlam
         from homing.perception.apriltag import TagDetector
         from homing.perception.tag_wall import TagPerception
@@ -138,6 +146,19 @@ class Collector:
         matched = self.grid.pose if self.scan_matched else None
         if self.slam.update(obs.stamp, obs.odom.pose, obs.scan, tags, matched):
             self.keyframe_truth.append(truth)
+        self._place(tags)
+
+    def step_external(self, obs: Any, truth: Pose2, tags: list[Any], grid_pose: Pose2) -> None:
+        """One tick of a mission whose services ran the mappers: record truth per keyframe and place the tags."""
+        self.last_stamp = obs.stamp
+        self.history = (self.history + [(obs.stamp, obs.odom.pose)])[-60:]
+        self.grid_history = (self.grid_history + [(obs.stamp, grid_pose)])[-60:]
+        self.last_tags = list(tags)
+        while len(self.keyframe_truth) < len(self.slam.keyframes):
+            self.keyframe_truth.append(truth)
+        self._place(tags)
+
+    def _place(self, tags: list[Any]) -> None:
         for m in tags:
             self.placed_odom.setdefault(m.tag_id, []).append(interpolate_pose(self.history, m.stamp).compose(m.pose))
             self.placed_grid.setdefault(m.tag_id, []).append(interpolate_pose(self.grid_history, m.stamp).compose(m.pose))
@@ -305,28 +326,95 @@ def explore_mission() -> Path:
     return Path(__file__).resolve().parents[1] / "missions" / "explore.yaml"
 
 
-def scenario_explore(world: Any, seed: int, minutes: float) -> dict[str, float]:
-    """The autonomous exploration mission (missions/explore.yaml) for ``minutes`` of sim time, mappers watching."""
+def explore_tour_mission(folder: Path, dock_tag: int = 0, tour: bool = True) -> Path:
+    """missions/explore.yaml with ``tag_slam`` after ``grid_slam`` and, when ``tour``, a tag tour after it.
+
+    Written to ``folder`` (the bundled file is left alone). Exploration of a
+    small world ends long before 30 minutes (lab and loop: ~2 min: the lidar
+    maps a corridor from afar, the camera reads tags within 3 m), so the
+    tour keeps the robot going on its own, forever, alternating: a view pose
+    facing the next unvisited stretch of wall of its own grid
+    (``NextWallView``: finds tags exploration drove past) and the
+    least-visited tag of its own landmark map (``NextTagView``: re-observes
+    tags, closing loops); ``NavigateToPose`` drives each on the
+    tag-corrected map (a failed visit is skipped); the runner's time limit
+    ends the run.
+    """
+    import yaml
+
+    from homing.atomic import atomic_write
+
+    src = explore_mission()
+    if not src.is_file():
+        raise FileNotFoundError(f"{src} is not there yet")
+    doc = yaml.safe_load(src.read_text())
+    services = list(doc.get("services") or [])
+    names = [s if isinstance(s, str) else next(iter(s)) for s in services]
+    if "tag_slam" not in names:
+        services.insert(names.index("grid_slam") + 1 if "grid_slam" in names else 0, {"tag_slam": {"dock_tag": dock_tag}})
+    doc["services"] = services
+    if tour:
+        def visit(name: str, pick: dict[str, Any]) -> dict[str, Any]:
+            go = {"NavigateToPose": {"name": f"GoTo{name}", "goal_key": "/tag_tour/goal", "timeout": "120 s"}}
+            return {"force_success": {"child": {"sequence": {"name": f"Visit{name}", "children": [pick, go]}}}}
+
+        lap = {"sequence": {"name": "SearchThenRevisit", "children": [
+            visit("Wall", {"NextWallView": {"distance": VIEW_DISTANCE}}),
+            visit("Tag", {"NextTagView": {"distance": VIEW_DISTANCE}}),
+        ]}}
+        doc["tree"] = {"sequence": {"name": "ExploreThenTour", "children": [
+            doc["tree"],
+            {"MissionState": {"name": "TourState", "state": "TouringTags"}},
+            {"repeat": {"name": "TagTour", "times": -1, "child": lap}},
+        ]}}
+    out = folder / ("explore_tour.yaml" if tour else "explore_tags.yaml")
+    atomic_write(out, yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
+    return out
+
+
+def _bb(r: Any, key: str) -> Any:
+    try:
+        return r.bb.get(key)
+    except KeyError:
+        return None
+
+
+def scenario_explore(world: Any, seed: int, minutes: float, tour: bool = True) -> dict[str, float]:
+    """The autonomous exploration mission with ``tag_slam`` online for ``minutes`` of sim time (then a tag tour).
+
+    GTSAM is the mission's own ``tag_slam`` service (its landmarks steer the
+    tour and its grid the navigation); the grid and odometry estimates place
+    the very tag measurements that service took, through the ``grid_slam``
+    service's scan-matched pose and through odometry.
+    """
+    import tempfile
+
     from homing.missions.compiler import compile_mission
     from homing.missions.runner import Runner
     from homing.sim import SimRobot
 
-    path = explore_mission()
-    if not path.is_file():
-        raise FileNotFoundError(f"{path} is not there yet")
-    mission = compile_mission(path, {"time_limit": f"{minutes:g} min"})
+    with tempfile.TemporaryDirectory(prefix="homing-explore-") as tmp:
+        mission = compile_mission(explore_tour_mission(Path(tmp), world.dock_tag_id, tour), {"time_limit": f"{minutes:g} min"})
     robot = SimRobot(world, seed=seed)
-    col = Collector(world.dock_tag_id, OPTIONS['scan_matched'])
+    col = Collector(world.dock_tag_id, external=True)
+    explored: list[float] = []
 
     def watch(r: Runner) -> None:
-        if r.observation is not None and r.observation.stamp > col.last_stamp:
-            col.step(r.observation, robot.truth_pose())
+        obs = r.observation
+        if obs is None or obs.stamp <= col.last_stamp:
+            return
+        svc = {s.name: s for s in r.services}
+        col.slam = svc["tag_slam"].slam
+        col.step_external(obs, robot.truth_pose(), _bb(r, "/perception/tags") or [], svc["grid_slam"].slam.pose)
+        if not explored and _bb(r, "/mission/state") in ("Done", "TouringTags"):
+            explored.append(obs.stamp)
 
     try:
         runner = Runner(mission, robot, seed=seed, until=60.0 * minutes, on_tick=watch)
         result = runner.run()
         out = col.result({t.id: Pose2(t.x, t.y, t.yaw) for t in world.tags})
-        out.update(sim_minutes=result.time / 60.0, rtf=result.rtf)
+        out.update(sim_minutes=result.time / 60.0, rtf=result.rtf,
+                   explore_minutes=(explored[0] if explored else result.time) / 60.0)
         return out
     finally:
         robot.close()
@@ -376,6 +464,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenarios", default="loop,explore,cycles,synthetic",
                         help="comma-separated subset of loop, explore, cycles, synthetic")
     parser.add_argument("--minutes", type=float, default=30.0, help="simulated minutes of the explore scenario")
+    parser.add_argument("--no-tour", action="store_true",
+                        help="explore scenario: end when exploration ends instead of touring the mapped tags")
     parser.add_argument("--cycles", type=int, default=3, help="dock cycles in the cycles scenario")
     parser.add_argument("--scan-matched", action="store_true",
                         help="also give GTSAM the grid's scan-matched motion between keyframes (robust factor)")
@@ -398,7 +488,7 @@ def _one(scen: str, world: Any, seed: int, args: argparse.Namespace) -> dict[str
     if scen == "loop":
         return scenario_loop(world, seed)
     if scen == "explore":
-        return scenario_explore(world, seed, args.minutes)
+        return scenario_explore(world, seed, args.minutes, tour=not args.no_tour)
     if scen == "cycles":
         return scenario_cycles(world, seed, args.cycles)
     raise KeyError(f"unknown scenario '{scen}'")

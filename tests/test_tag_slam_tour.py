@@ -1,0 +1,96 @@
+"""The tag tour's goal pickers: view poses in front of mapped tags (least-visited first) and facing unseen walls."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import py_trees
+from homing.behaviours.tag_slam_service import LANDMARKS_KEY, POSE_KEY, TOUR_GOAL_KEY, NextTagView
+from homing.perception.tag_search import next_view, wall_views
+from homing.robot import Pose2
+from py_trees.common import Access, Status
+
+
+def _board(tags: dict[int, Pose2] | None, pose: Pose2 | None) -> py_trees.blackboard.Client:
+    py_trees.blackboard.Blackboard.clear()
+    bb = py_trees.blackboard.Client(name="test")
+    for key in (LANDMARKS_KEY, POSE_KEY, TOUR_GOAL_KEY):
+        bb.register_key(key=key, access=Access.WRITE)
+    if tags is not None:
+        bb.set(LANDMARKS_KEY, tags)
+    if pose is not None:
+        bb.set(POSE_KEY, pose)
+    return bb
+
+
+def test_goal_is_in_front_of_the_nearest_tag_facing_it():
+    # tag 1 on a wall at x = 3 facing -x; tag 2 far away facing +y
+    bb = _board({1: Pose2(3.0, 0.0, math.pi), 2: Pose2(-5.0, 4.0, math.pi / 2)}, Pose2(0.0, 0.0, 0.0))
+    leaf = NextTagView("pick", distance=1.2)
+    leaf.tick_once()
+    assert leaf.status is Status.SUCCESS
+    goal = bb.get(TOUR_GOAL_KEY)
+    assert math.hypot(goal.x - 1.8, goal.y) < 1e-9  # 1.2 m out from the tag along its facing direction
+    assert abs(math.cos(goal.theta) - 1.0) < 1e-9  # looking back at the tag (+x)
+
+
+def test_every_tag_is_visited_before_any_twice():
+    tags = {i: Pose2(float(i), 3.0, -math.pi / 2) for i in range(4)}
+    bb = _board(tags, Pose2(0.0, 0.0, 0.0))
+    leaf = NextTagView("pick", distance=1.0)
+    seen = []
+    for _ in range(8):
+        leaf.tick_once()
+        goal = bb.get(TOUR_GOAL_KEY)
+        assert abs(goal.y - 2.0) < 1e-9 and abs(math.sin(goal.theta) - 1.0) < 1e-9
+        seen.append(round(goal.x))
+    assert sorted(seen[:4]) == [0, 1, 2, 3] and sorted(seen[4:]) == [0, 1, 2, 3]
+
+
+def test_fails_while_nothing_is_mapped():
+    _board({}, Pose2(0.0, 0.0, 0.0))
+    leaf = NextTagView("pick")
+    leaf.tick_once()
+    assert leaf.status is Status.FAILURE
+    _board({3: Pose2(1.0, 1.0, 0.0)}, None)
+    leaf = NextTagView("pick")
+    leaf.tick_once()
+    assert leaf.status is Status.FAILURE
+
+
+def _box(width: float, height: float, res: float = 0.05) -> tuple[np.ndarray, float, tuple[float, float]]:
+    """A walled rectangle, free inside, ``width`` × ``height`` [m] with the origin at its lower-left outer corner."""
+    h, w = int(round(height / res)), int(round(width / res))
+    data = np.full((h, w), 0, dtype=np.int8)
+    data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = 100
+    return data, res, (0.0, 0.0)
+
+
+def test_wall_views_stand_off_the_walls_facing_them_and_spaced():
+    data, res, origin = _box(8.0, 6.0)
+    views = wall_views(data, res, origin, distance=1.2, spacing=2.0)
+    assert len(views) >= 8  # a 8 × 6 m room has ~ (2·(5.6 + 3.6)) / 2 ≈ 9 stretches of wall 1.2 m in
+    for v in views:
+        d = min(v.x, v.y, 8.0 - v.x, 6.0 - v.y) - res  # to the nearest wall cell's face
+        assert abs(d - 1.2) < 0.2
+        # facing the nearest wall: the unit heading points along the shortest way out
+        walls = {(-1.0, 0.0): v.x, (1.0, 0.0): 8.0 - v.x, (0.0, -1.0): v.y, (0.0, 1.0): 6.0 - v.y}
+        near = min(walls.values())
+        ok = [u for u, dist in walls.items() if dist < near + 0.1]
+        assert any(math.cos(v.theta) * u[0] + math.sin(v.theta) * u[1] > 0.7 for u in ok)
+    for i, a in enumerate(views):
+        assert all(a.distance_to(b) >= 2.0 - 1e-9 for b in views[i + 1:])
+
+
+def test_unknown_space_keeps_views_away_and_visited_views_are_skipped():
+    data, res, origin = _box(8.0, 6.0)
+    data[:, 80:] = -1  # right half never seen: no view pose may be near it
+    views = wall_views(data, res, origin)
+    assert views and all(v.x < 4.0 - 0.35 + 1e-9 for v in views)
+    here = Pose2(2.0, 3.0, 0.0)
+    first = next_view(views, here, [])
+    assert first == min(views, key=here.distance_to)
+    second = next_view(views, here, [first])
+    assert second is not None and second.distance_to(first) > 1.0
+    assert next_view(views, here, views) is None
