@@ -403,7 +403,7 @@ def scenario_explore(world: Any, seed: int, minutes: float, tour: bool = True) -
         obs = r.observation
         if obs is None or obs.stamp <= col.last_stamp:
             return
-        svc = {s.name: s for s in r.services}
+        svc: dict[str, Any] = {s.name: s for s in r.services}  # concrete services: their .slam
         col.slam = svc["tag_slam"].slam
         col.step_external(obs, robot.truth_pose(), _bb(r, "/perception/tags") or [], svc["grid_slam"].slam.pose)
         if not explored and _bb(r, "/mission/state") in ("Done", "TouringTags"):
