@@ -7,7 +7,11 @@ import subprocess
 import sys
 
 import pytest
-import tomllib
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
 
 from tests.conftest import REPO
 
