@@ -172,7 +172,7 @@ def test_explore_succeeds_when_no_frontier_is_left_and_the_condition_agrees() ->
 
 def test_grid_slam_service_grid_agrees_with_the_truth(tmp_path: Path) -> None:
     """The service in the mission runner, on the simulator: back out of the lab's dock and turn a full circle."""
-    sim = pytest.importorskip("homing.sim")
+    import homing.sim as sim
     from homing.mapping.evaluate import cell_agreement
     from homing.missions.compiler import compile_mission
     from homing.missions.runner import Runner

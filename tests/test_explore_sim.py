@@ -9,8 +9,6 @@ import pytest
 
 from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData, save_map
 
-sim = pytest.importorskip("homing.sim")
-
 RES = 0.05  # [m]
 
 

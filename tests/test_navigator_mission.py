@@ -17,14 +17,13 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import homing.sim as sim  # noqa: E402 - part of the package: a broken simulator must fail, not skip
 import py_trees
 import pytest
 from homing.behaviours.registry import SERVICES, register_service
 from homing.missions.compiler import compile_mission
 from homing.missions.runner import Runner, RunResult, StatusChange
 from homing.robot import Observation
-
-sim = pytest.importorskip("homing.sim")
 
 GRID, POSE, MAP_TO_ODOM = "/map/grid", "/map/pose", "/map/map_to_odom"
 GOAL = (8.0, 2.0, 0.0)  # [m, m, rad] in the lab's east room, behind the partition

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import homing.sim as sim  # noqa: E402 - part of the package: a broken simulator must fail, not skip
 import numpy as np
 import py_trees
 import pytest
@@ -13,8 +14,6 @@ from homing.robot import Pose2
 from py_trees.common import Access
 
 from homing.errors import UserError
-
-sim = pytest.importorskip("homing.sim")
 
 
 def _client(service: NavigationService, robot: object) -> py_trees.blackboard.Client:

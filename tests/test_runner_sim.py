@@ -7,13 +7,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import homing.sim as sim  # noqa: E402 - part of the package: a broken simulator must fail, not skip
 import pytest
 from homing.missions.compiler import compile_mission
 from homing.missions.runner import Runner, StatusChange
 
 from tests.conftest import REPO
-
-sim = pytest.importorskip("homing.sim")
 
 MISSION = "services: []\ntree:\n  sequence: [{Drive: {v: -0.2, seconds: 3}}, {Drive: {omega: 90 deg/s, seconds: 1}}, Stop]\n"
 
