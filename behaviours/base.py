@@ -25,14 +25,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 import py_trees
+from homing.behaviours.keys import CMD_VEL_KEY, OBSERVATION_KEY, TIME_KEY
 from homing.behaviours.registry import Param
 from homing.robot import Observation, RobotAdapter, Twist2
 from py_trees.common import Access, Status
-
-OBSERVATION_KEY = "/robot/observation"
-TIME_KEY = "/robot/time"
-CMD_VEL_KEY = "/cmd_vel"
-STATE_KEY = "/mission/state"
 
 TIMEOUT_PARAM = Param(
     "timeout", float, 0.0, "s", "give up (FAILURE, reason 'timed_out') after this long on the adapter clock; 0 = never"

@@ -30,11 +30,17 @@ from typing import Any
 
 import numpy as np
 from homing.behaviours.base import (
-    CMD_VEL_KEY,
-    OBSERVATION_KEY,
     TIMEOUT_PARAM,
     HomingBehaviour,
     LongAction,
+)
+from homing.behaviours.keys import (
+    CMD_VEL_KEY,
+    GRID_KEY,
+    MAP_TO_ODOM_KEY,
+    NAVIGATOR_KEY,
+    OBSERVATION_KEY,
+    POSE_KEY,
 )
 from homing.behaviours.motion import failure_reason
 from homing.behaviours.registry import Param, register
@@ -46,10 +52,6 @@ from homing.navigation.planner import distance_map
 from homing.robot import Pose2
 from py_trees.common import Status
 
-NAVIGATOR_KEY = "/nav/navigator"
-GRID_KEY = "/map/grid"
-POSE_KEY = "/map/pose"
-MAP_TO_ODOM_KEY = "/map/map_to_odom"
 GOAL_KEY = "/explore/goal"
 DECIDE_PERIOD = 1.0  # [s] adapter time between decisions while driving (strategies replan no faster)
 GOAL_REASONS = ("no_path", "goal_occupied", "bumped")  # the goal's fault (bumped: TooManyBumps near it): blacklist it and go on

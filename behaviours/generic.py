@@ -13,12 +13,10 @@ import operator
 from typing import Any
 
 from homing.behaviours.base import (
-    CMD_VEL_KEY,
-    OBSERVATION_KEY,
-    STATE_KEY,
     HomingBehaviour,
     LongAction,
 )
+from homing.behaviours.keys import CMD_VEL_KEY, OBSERVATION_KEY, STATE_KEY
 from homing.behaviours.registry import REQUIRED, Param, register
 from py_trees.common import Status
 

@@ -27,14 +27,12 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from homing.behaviours.keys import GRID_KEY, MAP_TO_ODOM_KEY, POSE_KEY
 from homing.behaviours.registry import Param, register_service
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
 from homing.robot import Observation, RobotAdapter
 
-GRID_KEY = "/map/grid"
-POSE_KEY = "/map/pose"
-MAP_TO_ODOM_KEY = "/map/map_to_odom"
 PUBLISH_PERIOD = 1.0  # [s] between /map/grid snapshots
 
 

@@ -17,11 +17,17 @@ import math
 from typing import Any
 
 from homing.behaviours.base import (
-    CMD_VEL_KEY,
-    OBSERVATION_KEY,
     TIMEOUT_PARAM,
     HomingBehaviour,
     LongAction,
+)
+from homing.behaviours.keys import (
+    CMD_VEL_KEY,
+    GRID_KEY,
+    MAP_TO_ODOM_KEY,
+    NAVIGATOR_KEY,
+    OBSERVATION_KEY,
+    POSE_KEY,
 )
 from homing.behaviours.registry import Param, register
 from homing.navigation.controller import CollisionAhead, InvalidPath
@@ -33,10 +39,6 @@ from homing.navigation.recovery import Spin as SpinMotion
 from homing.robot import Pose2
 from py_trees.common import Status
 
-NAVIGATOR_KEY = "/nav/navigator"
-GRID_KEY = "/map/grid"
-POSE_KEY = "/map/pose"
-MAP_TO_ODOM_KEY = "/map/map_to_odom"
 FAILURE_KEY = "/nav/failure"
 FAILURE_PARAM = Param("failure_key", str, FAILURE_KEY, doc="blackboard key the typed failure reason is written to")
 

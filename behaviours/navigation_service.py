@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from homing.behaviours.keys import GRID_KEY, MAP_TO_ODOM_KEY, NAVIGATOR_KEY, POSE_KEY
 from homing.behaviours.registry import Param, register_service
 from homing.navigation.controller import CONTROLLERS
 from homing.navigation.costmap import CostmapParams
@@ -33,11 +34,7 @@ from py_trees.common import Access
 
 from homing.errors import UserError
 
-NAVIGATOR_KEY = "/nav/navigator"
 GOAL_KEY = "/nav/goal"  # the default goal slot of NavigateToPose: created empty here, set by any leaf
-GRID_KEY = "/map/grid"
-POSE_KEY = "/map/pose"
-MAP_TO_ODOM_KEY = "/map/map_to_odom"
 KEEPOUT_KEY = "/nav/keepout"  # keep-out zones in map: the service's parameter at first, any leaf may set it
 
 

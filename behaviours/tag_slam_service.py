@@ -26,15 +26,12 @@ import math
 from typing import Any
 
 from homing.behaviours.base import HomingBehaviour
+from homing.behaviours.keys import GRID_KEY, MAP_TO_ODOM_KEY, POSE_KEY, TAGS_KEY
 from homing.behaviours.registry import Param, register, register_service
 from homing.robot import Observation, Pose2, RobotAdapter
 from py_trees.common import Status
 
-TAGS_KEY = "/perception/tags"
 LANDMARKS_KEY = "/slam/landmarks"
-MAP_TO_ODOM_KEY = "/map/map_to_odom"
-POSE_KEY = "/map/pose"
-GRID_KEY = "/map/grid"
 REBUILD_SHIFT = 0.03  # [m] a keyframe moved this far since drawn → rebuild the grid
 REBUILD_PERIOD = 5.0  # [s] adapter time between checks for a rebuild
 REBUILD_BATCH = 25  # scans drawn into the grid being rebuilt per tick

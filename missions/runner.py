@@ -29,12 +29,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import py_trees
+from homing.behaviours.keys import TAGS_KEY
 from homing.behaviours.registry import Service
 from homing.missions.compiler import CompiledMission
 from homing.robot import Observation, RobotAdapter, Twist2
 from py_trees.common import Access, Status
 
-TAGS_KEY = "/perception/tags"  # the sightings the tag_slam service took this tick (logged for replay)
 UNTIL_SLACK = 1e-6  # [s] float steps of 1/rate must not cost an extra tick at the limit
 STOP_REASONS = ("success", "failure", "time_limit", "interrupted")
 
