@@ -9,7 +9,8 @@ Per run, the thesis's columns:
 
 - efficiency [m²/s]: area explored / elapsed session time, both taken at the
   moment the run first reaches 95 % coverage of the reachable free area (the
-  truth's coverage, sampled every ``COVERAGE_PERIOD``); a run that never
+  fraction of the truth's reachable free area the grid has observed,
+  :func:`homing.mapping.evaluate.coverage`, sampled every ``COVERAGE_PERIOD``); a run that never
   reaches 95 % is measured at the end of the time limit: its robot may have
   stopped ("no frontier left", or given up) but the session clock keeps
   running, as in the thesis's fixed 30-minute sessions. The same rule for
@@ -67,7 +68,7 @@ class RunResult:
     seed: int
     efficiency: float  # [m²/s] area at the first ≥ 95 % coverage sample / its time, else final area / time limit
     area: float  # [m²] free cells of the final grid
-    coverage: float  # fraction of the reachable free area seen free
+    coverage: float  # fraction of the reachable free area observed (free or wall: mapping.evaluate.coverage)
     farthest: float  # [m] from the start (truth)
     path_length: float  # [m] (truth)
     explore_time: float  # [s] from the start until the robot was done, or the time limit
@@ -80,6 +81,7 @@ class RunResult:
     agreement: float  # cell agreement with the truth on observed cells
     wall: float  # [s] real time of the run
     rtf: float  # adapter seconds per real second
+    free_coverage: float = math.nan  # fraction of the reachable free area mapped free (misregistration counts)
 
 
 def world_specs(names: list[str] | None) -> list[str]:
@@ -174,7 +176,7 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
     steps = explore.explorer.goals_chosen if explore is not None and explore.explorer is not None else 0
     return RunResult(
         world=world_label(world_spec), strategy=strategy, seed=seed,
-        efficiency=efficiency, area=cov.area, coverage=cov.coverage,
+        efficiency=efficiency, area=cov.area, coverage=cov.coverage, free_coverage=cov.free_coverage,
         farthest=track.far, path_length=track.path, explore_time=explore_time, t95=track.t95,
         area95=track.area95,
         done=done, bumps=int(track.bumps), nav_failures=len(explore.failures) if explore is not None else 0,
@@ -231,7 +233,8 @@ def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
             r_near, r_lite = _median(vs_near.get((world, strategy), [])), _median(vs_lite.get((world, strategy), []))
         out.setdefault(world, {})[strategy] = {
             "efficiency": med("efficiency"), "area": med("area"), "coverage": med("coverage"),
-            "min_coverage": min(r.coverage for r in runs), "path_length": med("path_length"),
+            "min_coverage": min(r.coverage for r in runs), "free_coverage": med("free_coverage"),
+            "path_length": med("path_length"),
             "farthest": med("farthest"), "t95": med("t95"), "bumps": sum(r.bumps for r in runs),
             "ratio_vs_nearest": r_near, "ratio_vs_explore_lite": r_lite, "runs": len(runs),
         }  # fmt: skip

@@ -75,18 +75,25 @@ def reachable_free(truth: MapData, start_xy: tuple[float, float]) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Coverage:
-    """Explored area [m²] (grid free cells), covered fraction of the truth's reachable free area, and agreement."""
+    """Explored area [m²] (grid free cells), the fraction of the truth's reachable free area the grid has observed
+    (``coverage``) and has observed as free (``free_coverage``), and cell agreement on observed cells."""
 
     area: float
     coverage: float
     agreement: float
+    free_coverage: float
 
 
 def coverage(grid: OccupancyGrid, truth: MapData, start_xy: tuple[float, float], world_from_map: Pose2 | None = None) -> Coverage:
-    """How much of the truth's free area reachable from ``start_xy`` the grid has seen as free.
+    """How much of the truth's free area reachable from ``start_xy`` the grid has observed.
 
     Computed on the truth's cells: a truth cell counts as covered if the grid
-    cell under its centre is FREE.
+    cell under its centre is known (free or occupied). Exploration is about
+    having looked at a place; whether the map got it right is
+    :func:`cell_agreement`'s question. Counting only cells mapped FREE would
+    charge a map's small misregistration (a wall face drawn one cell into the
+    room, a 2 cm drift along a 20 m wall) to the exploration strategy:
+    ``free_coverage`` keeps that stricter figure for reference.
     """
     world_from_map = world_from_map or Pose2()
     reach = reachable_free(truth, start_xy)
@@ -96,7 +103,10 @@ def coverage(grid: OccupancyGrid, truth: MapData, start_xy: tuple[float, float],
     pts = world_from_map.inverse().transform_points(np.column_stack([x, y]))
     gr, gc = grid.world_to_cell(pts[:, 0], pts[:, 1])
     ok = grid.in_bounds(gr, gc)
-    seen = np.zeros(len(rows), dtype=bool)
-    seen[ok] = grid.data[gr[ok], gc[ok]] == FREE
+    value = np.full(len(rows), UNKNOWN, dtype=grid.data.dtype)
+    value[ok] = grid.data[gr[ok], gc[ok]]
     area = float((grid.data == FREE).sum()) * grid.resolution**2
-    return Coverage(area, float(seen.mean()) if len(seen) else float("nan"), cell_agreement(grid, truth, world_from_map))
+    if not len(rows):
+        return Coverage(area, float("nan"), cell_agreement(grid, truth, world_from_map), float("nan"))
+    return Coverage(area, float((value != UNKNOWN).mean()), cell_agreement(grid, truth, world_from_map),
+                    float((value == FREE).mean()))

@@ -1,0 +1,79 @@
+"""Exploration scoring against a true map (homing.mapping.evaluate): coverage counts observed places, agreement counts right ones."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from homing.mapping.evaluate import cell_agreement, coverage, reachable_free
+from homing.mapping.grid import OccupancyGrid
+from homing.robot import Pose2
+
+from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData
+
+
+def two_rooms() -> MapData:
+    """4 m × 2 m at 0.1 m: two 2 m × 2 m rooms joined by a door, plus a sealed closet (not reachable)."""
+    g = np.full((20, 40), FREE, np.int8)
+    g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = OCCUPIED
+    g[:, 20] = OCCUPIED
+    g[8:12, 20] = FREE  # the door
+    g[2:6, 30:36] = OCCUPIED  # closet walls
+    g[3:5, 31:35] = FREE  # ... sealed inside
+    return MapData(g, 0.1, (0.0, 0.0, 0.0))
+
+
+def test_reachable_free_excludes_the_sealed_closet() -> None:
+    truth = two_rooms()
+    reach = reachable_free(truth, (1.0, 1.0))
+    assert not reach[3:5, 31:35].any()
+    assert reach[10, 20] and reach[10, 30]
+    assert reach.sum() == (truth.grid == FREE).sum() - 8
+
+
+def grid_from(values: np.ndarray, resolution: float = 0.1) -> OccupancyGrid:
+    return OccupancyGrid.from_map_data(MapData(values, resolution, (0.0, 0.0, 0.0)), grow=False)
+
+
+def test_coverage_counts_observed_cells_and_free_coverage_only_free_ones() -> None:
+    truth = two_rooms()
+    seen = np.full(truth.grid.shape, UNKNOWN, np.int8)
+    seen[:, :21] = truth.grid[:, :21]  # the left room and the door's wall column
+    reach = reachable_free(truth, (1.0, 1.0))
+    left = reach[:, :21].sum() / reach.sum()
+    cov = coverage(grid_from(seen), truth, (1.0, 1.0))
+    assert cov.coverage == pytest.approx(left)
+    assert cov.free_coverage == pytest.approx(left)
+    assert cov.area == pytest.approx((seen == FREE).sum() * 0.01)
+    assert cov.agreement == pytest.approx(1.0)
+
+    # The same map with a row of the left room's free cells drawn as wall (a wall face two cells off, beyond
+    # agreement's one-cell tolerance): still every place observed, so coverage stays; fewer cells free, and
+    # the agreement drops.
+    shifted = seen.copy()
+    shifted[2, 1:20] = OCCUPIED
+    cov2 = coverage(grid_from(shifted), truth, (1.0, 1.0))
+    assert cov2.coverage == pytest.approx(left)
+    assert cov2.free_coverage == pytest.approx(left - 19 / reach.sum())
+    assert cov2.agreement < 1.0
+
+
+def test_coverage_uses_the_map_frame_pose() -> None:
+    """A grid built in a map frame rotated and moved from the world's reads through ``world_from_map``."""
+    truth = two_rooms()
+    world_from_map = Pose2(4.0, 2.0, np.pi)  # the map frame's origin at the far corner, facing back
+    g = OccupancyGrid(0.1, (0.0, 0.0), (20, 40), grow=False)
+    rows, cols = np.mgrid[0:20, 0:40]
+    x, y = g.cell_to_world(rows.ravel(), cols.ravel())
+    world = world_from_map.transform_points(np.column_stack([x, y]))
+    tr = np.clip(np.floor(world[:, 1] / 0.1).astype(int), 0, 19)
+    tc = np.clip(np.floor(world[:, 0] / 0.1).astype(int), 0, 39)
+    values = truth.grid[tr, tc].reshape(20, 40)
+    values[(world[:, 0] > 2.1).reshape(20, 40)] = UNKNOWN  # only the left room seen
+    g2 = grid_from(values)
+    reach = reachable_free(truth, (1.0, 1.0))
+    left = reach[:, :21].sum() / reach.sum()
+    assert coverage(g2, truth, (1.0, 1.0), world_from_map).coverage == pytest.approx(left)
+    # Read without the transform, what was seen lands on the right room (and the closet's walls).
+    assert coverage(g2, truth, (1.0, 1.0)).coverage == pytest.approx(reach[:, 19:].sum() / reach.sum())  # map cols ≥ 19
+    assert cell_agreement(g2, truth, world_from_map) == pytest.approx(1.0)
+    assert cell_agreement(g2, truth) < 0.95
