@@ -79,6 +79,27 @@ class Rejection:
     value: float
 
 
+def _safe_detector_class(base: type) -> type:
+    """``pupil_apriltags.Detector`` whose destructor does not read a freed tag family (pupil-labs/apriltags#46).
+
+    Its ``__del__`` frees the family first and then calls
+    ``apriltag_detector_destroy``, which walks the families again
+    (``quick_decode_uninit``): a use-after-free that now and then segfaults
+    (seen in ``homing bench slam`` between scenarios: ``segfault at 58 … in
+    libapriltag.so.3``). Clearing the detector's family list first leaves
+    the destroy nothing to walk.
+    """
+
+    class SafeDetector(base):  # type: ignore[misc, valid-type]
+        def __del__(self) -> None:
+            if getattr(self, "tag_detector_ptr", None) is not None:
+                self.libc.apriltag_detector_clear_families.restype = None
+                self.libc.apriltag_detector_clear_families(self.tag_detector_ptr)
+            super().__del__()
+
+    return SafeDetector
+
+
 @dataclass(frozen=True)
 class TagFilter:
     """Thresholds for accepting a detection (defaults: the module constants)."""
@@ -215,7 +236,8 @@ class TagDetector:
         self.tag_sizes = {int(k): float(v) for k, v in (tag_sizes or {}).items()}
         self.filter = filt or TagFilter()
         self.upright = upright
-        self._detector = pupil_apriltags.Detector(families=family, quad_decimate=quad_decimate, nthreads=1)
+        self._detector = _safe_detector_class(pupil_apriltags.Detector)(
+            families=family, quad_decimate=quad_decimate, nthreads=1)
         self.last_rejections: list[Rejection] = []
 
     def size_of(self, tag_id: int) -> float:

@@ -8,13 +8,8 @@ import math
 
 import numpy as np
 import pytest
-from homing.mapping.landmark_slam import (
-    LandmarkSlam,
-    SlamConfig,
-    SyntheticRun,
-    interpolate_pose,
-    synthetic_loop,
-)
+from homing.mapping.landmark_slam import LandmarkSlam, SlamConfig, interpolate_pose
+from homing.mapping.landmark_synthetic import SyntheticRun, synthetic_loop
 from homing.perception.apriltag import TagMeasurement
 from homing.robot.types import Pose2, Scan
 

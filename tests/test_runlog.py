@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from homing.mapping.landmark_slam import LandmarkSlam, synthetic_loop
+from homing.mapping.landmark_slam import LandmarkSlam
+from homing.mapping.landmark_synthetic import synthetic_loop
 from homing.missions.runlog import MAGIC, Recorder, RunLog
 from homing.robot.types import (
     IR,

@@ -48,6 +48,25 @@ def test_every_tag_is_visited_before_any_twice():
     assert sorted(seen[:4]) == [0, 1, 2, 3] and sorted(seen[4:]) == [0, 1, 2, 3]
 
 
+def test_every_nth_pick_returns_to_the_anchor_tag():
+    # the anchor (tag 0, the dock's) is nearest; the others are still visited least-visited first
+    tags = {i: Pose2(float(i), 3.0, -math.pi / 2) for i in range(4)}
+    bb = _board(tags, Pose2(0.0, 0.0, 0.0))
+    leaf = NextTagView("pick", distance=1.0, anchor_tag=0, anchor_every=2)
+    seen = []
+    for _ in range(8):
+        leaf.tick_once()
+        seen.append(round(bb.get(TOUR_GOAL_KEY).x))
+    assert seen[1::2] == [0, 0, 0, 0]
+    assert sorted(seen[0:6:2]) == [1, 2, 3]  # each other tag once before any twice
+    # an anchor not yet mapped is not waited for
+    bb = _board({2: Pose2(2.0, 3.0, -math.pi / 2)}, Pose2(0.0, 0.0, 0.0))
+    leaf = NextTagView("pick", distance=1.0, anchor_tag=0, anchor_every=2)
+    for _ in range(2):
+        leaf.tick_once()
+        assert leaf.status is Status.SUCCESS and round(bb.get(TOUR_GOAL_KEY).x) == 2
+
+
 def test_fails_while_nothing_is_mapped():
     _board({}, Pose2(0.0, 0.0, 0.0))
     leaf = NextTagView("pick")
