@@ -85,6 +85,14 @@ class Controller(Protocol):
 
 
 # -- the scan check ------------------------------------------------------------------------
+def path_in_base(pose: Pose2, path: np.ndarray) -> np.ndarray:
+    """(N, 2) ``path`` [m, map] seen from the robot at ``pose`` (base_link); an empty path is :class:`InvalidPath`."""
+    path = np.asarray(path, dtype=float).reshape(-1, 2)
+    if len(path) == 0:
+        raise InvalidPath("empty path")
+    return pose.inverse().transform_points(path)
+
+
 def arc_poses(v: float, omega: float, length: float, step: float = ARC_STEP) -> np.ndarray:
     """(K, 3) poses (x, y, θ) in base_link along the arc of (v, ω), every ``step`` [m] up to ``length`` [m]."""
     s = np.arange(0.0, length + 1e-9, step) * (1.0 if v >= 0 else -1.0)
@@ -185,10 +193,7 @@ class RegulatedPurePursuit:
 
     def compute(self, pose: Pose2, speed: Twist2, path: np.ndarray, scan_points: np.ndarray,
                 costmap: Costmap | None, dt: float) -> Twist2:
-        path = np.asarray(path, dtype=float).reshape(-1, 2)
-        if len(path) == 0:
-            raise InvalidPath("empty path")
-        local = pose.inverse().transform_points(path)
+        local = path_in_base(pose, path)
         offset, remaining, carrot = _carrot(local, self._lookahead(speed.v))
         if offset > self.max_path_offset:
             raise InvalidPath(f"robot is {offset:.2f} m from its path")

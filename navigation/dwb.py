@@ -37,7 +37,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from homing.navigation.controller import CONTROLLERS, CollisionAhead, InvalidPath
+from homing.navigation.controller import CONTROLLERS, CollisionAhead, InvalidPath, path_in_base
 from homing.navigation.costmap import MAX_NON_OBSTACLE, NO_INFORMATION, Costmap
 from homing.robot import Pose2, Twist2
 from homing.robot.turtlebot import FOOTPRINT_RADIUS, NAV_MAX_V
@@ -222,10 +222,7 @@ class DWB:
     # -- one control step -------------------------------------------------------------
     def compute(self, pose: Pose2, speed: Twist2, path: np.ndarray, scan_points: np.ndarray,
                 costmap: Costmap | None, dt: float) -> Twist2:
-        path = np.asarray(path, dtype=float).reshape(-1, 2)
-        if len(path) == 0:
-            raise InvalidPath("empty path")
-        local = pose.inverse().transform_points(path)
+        local = path_in_base(pose, path)
         reach = self.max_v * self.sim_time + FORWARD_POINT + PATH_SLACK
         pts, s = _local_path(local, reach)
         offset = float(np.hypot(*pts[0]))
