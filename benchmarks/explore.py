@@ -46,7 +46,8 @@ from typing import Any
 from homing.benchmarks.common import print_table, write_json
 from homing.robot import Pose2
 
-STRATEGY_ORDER = ("nearest", "largest_closest", "largest_random", "largest_random_raw", "explore_lite", "gain_rate")
+STRATEGY_ORDER = ("nearest", "largest_closest", "largest_random", "largest_random_raw", "explore_lite", "gain_rate",
+                  "frontier_travel")
 SHARED_WORLDS = Path(__file__).resolve().parent.parent.parent / "shared" / "worlds"
 MISSION = Path(__file__).resolve().parent.parent / "missions" / "explore.yaml"
 COVERAGE_PERIOD = 5.0  # [s] adapter time between coverage samples (time to 95 %, and the efficiency taken then)

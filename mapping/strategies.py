@@ -1,4 +1,4 @@
-"""Frontier goal strategies chosen by name: the thesis's four (Mata 2017, §2.4.2, table 5.1), explore_lite's cost (Hörner 2016), and information gain per travel time (the default).
+"""Frontier goal strategies chosen by name: the thesis's four (Mata 2017, §2.4.2, table 5.1), explore_lite's cost (Hörner 2016), that cost weighed by travel distance (the default), and information gain per travel time.
 
 Every strategy sees the same :class:`GoalContext`: the map_server grid, the
 robot's cell and heading, the travel-distance field from the robot on the
@@ -24,7 +24,23 @@ choose again live in :mod:`homing.mapping.explorer`, shared by all.
   then plans to the centroid; here the centroid is snapped to the nearest
   reachable cell within ``CENTROID_TOLERANCE`` (else the frontier is skipped,
   as move_base would abort it and explore_lite blacklist it).
-- ``gain_rate`` (default) — information gain per travel time. Candidate
+- ``frontier_travel`` (default) — explore_lite's frontiers and centroid goal, with
+  the cost it means to have: ``TRAVEL_WEIGHT``·(the planner's travel
+  distance to the segment) − (its length), both in metres. explore_lite's
+  own distance term is the straight line times ``potential_scale`` times the
+  resolution (0.15 per metre at 5 cm cells), so next to a frontier's size it
+  hardly counts: the robot crosses the map for the largest frontier and
+  comes back for the small ones it left behind. Weighing a metre of
+  frontier against a metre of driving keeps what makes explore_lite fast in
+  halls and corridors (the frontier's length is a good guess of how much
+  space opens behind it, and the centroid goal, replanned every 3 s, keeps
+  the robot driving through the middle of the space) and clears nearby
+  rooms before leaving them. Once no frontier of explore_lite's minimum size
+  is left, ones down to ``CRUMB_SIZE`` are still visited, so the run does not
+  end short of the whole map (explore_lite's "ends early").
+- ``gain_rate`` — information gain per travel time (the default before
+  ``frontier_travel``: better in worlds of many small rooms, slower in halls,
+  where it leaves a hall half-seen for a bigger gain elsewhere and comes back). Candidate
   goals are the reachable cells of every smoothed segment plus viewpoints
   standing back from them in known free space (a ``SETBACK_STRIDE``
   lattice within ``SETBACK``: the lidar sees a frontier's unknown from
@@ -66,6 +82,8 @@ POTENTIAL_SCALE = 3.0  # explore_lite launch default
 GAIN_SCALE = 1.0  # explore_lite launch default
 MIN_FRONTIER_SIZE = 0.75  # [m] explore_lite launch default
 CENTROID_TOLERANCE = 1.0  # [m] how far a centroid goal may be moved to a reachable cell
+TRAVEL_WEIGHT = 1.0  # frontier_travel: metres of frontier one metre of travel is worth
+CRUMB_SIZE = 0.3  # [m] frontier_travel visits frontiers this small once none of MIN_FRONTIER_SIZE is left
 GAIN_RADIUS = 3.0  # [m] unknown area counted around a goal: half the lidar's 6 m range
 GAIN_POOL = 4  # cells pooled per side when counting unknown area (speed)
 TRAVEL_SPEED = 0.8 * NAV_MAX_V  # [m/s] average speed assumed along a path
@@ -233,19 +251,27 @@ class ExploreLite:
                 out.append(FrontierSegment(np.column_stack([r, c]).astype(np.int64), len(out)))
         return out
 
-    def choose(self, ctx: GoalContext) -> GoalChoice | None:
-        segs = self.frontiers(ctx)
-        if not segs:
-            return None
+    def costs(self, ctx: GoalContext, segs: list[FrontierSegment]) -> list[float]:
+        """explore_lite's frontierCost for each segment (lower is better)."""
         rr, rc = ctx.robot_cell
         res = ctx.resolution
         costs = []
         for s in segs:
             min_distance = float(np.min(np.hypot(s.cells[:, 0] - rr, s.cells[:, 1] - rc))) * res  # [m]
             costs.append(self.potential_scale * min_distance * res - self.gain_scale * s.size * res)
+        return costs
+
+    def choose(self, ctx: GoalContext) -> GoalChoice | None:
+        segs = self.frontiers(ctx)
+        if not segs:
+            return None
+        res = ctx.resolution
+        costs = self.costs(ctx, segs)
         reachable = np.isfinite(ctx.distance) & ~ctx.excluded
         rows, cols = np.nonzero(reachable)
         for i in np.argsort(costs, kind="stable"):
+            if not math.isfinite(costs[int(i)]):
+                break  # the rest cannot be reached either
             s = segs[int(i)]
             cr, cc = s.centroid()
             if ctx.excluded[int(round(cr)), int(round(cc))] or not len(rows):
@@ -256,6 +282,48 @@ class ExploreLite:
                 continue
             return GoalChoice((int(rows[j]), int(cols[j])), s, segs, -float(costs[int(i)]))
         return None
+
+
+class FrontierTravel(ExploreLite):
+    """explore_lite's frontiers and centroid goal, cost = travel distance − frontier length (see module doc)."""
+
+    name = "frontier_travel"
+
+    def __init__(self, travel_weight: float = TRAVEL_WEIGHT, min_frontier_size: float = MIN_FRONTIER_SIZE,
+                 crumb_size: float = CRUMB_SIZE) -> None:
+        super().__init__(min_frontier_size=min_frontier_size)
+        self.travel_weight = travel_weight
+        self.crumb_size = crumb_size
+
+    def choose(self, ctx: GoalContext) -> GoalChoice | None:
+        choice = super().choose(ctx)
+        if choice is None and self.crumb_size < self.min_frontier_size:
+            # No frontier of explore_lite's minimum size is left: visit the smaller ones too, rather than stop
+            # short of the whole map (explore_lite's "ends early").
+            full, self.min_frontier_size = self.min_frontier_size, self.crumb_size
+            try:
+                choice = super().choose(ctx)
+            finally:
+                self.min_frontier_size = full
+        return choice
+
+    def costs(self, ctx: GoalContext, segs: list[FrontierSegment]) -> list[float]:
+        """``travel_weight``·(planner distance to the segment) − its length [m]; ``inf`` for a segment the
+        robot cannot get near."""
+        # Frontier cells are unknown, and the free cells just beside a wall are out of the footprint's reach,
+        # so the planner's distance field is inf on them: take its minimum within the footprint's radius
+        # (plus a cell) of each frontier cell (a morphological min filter) — where the robot can stand.
+        r = (ctx.robot_radius + ctx.resolution) / ctx.resolution
+        k = int(math.ceil(r))
+        yy, xx = np.mgrid[-k : k + 1, -k : k + 1]
+        disc = (xx * xx + yy * yy <= r * r).astype(np.uint8)
+        beside = cv2.erode(np.where(np.isfinite(ctx.distance), ctx.distance, 1e9).astype(np.float32), disc,
+                           borderType=cv2.BORDER_CONSTANT, borderValue=1e9)
+        out = []
+        for s in segs:
+            d = float(beside[s.cells[:, 0], s.cells[:, 1]].min())
+            out.append(self.travel_weight * d - s.size * ctx.resolution if d < 1e8 else math.inf)
+        return out
 
 
 def unknown_gain(grid: np.ndarray, resolution: float, radius: float = GAIN_RADIUS) -> np.ndarray:
@@ -323,7 +391,7 @@ def _wall_gap(grid: np.ndarray, resolution: float, robot_radius: float) -> np.nd
 
 
 class GainRate:
-    """Information gain per travel time (see module doc): the default."""
+    """Information gain per travel time (see module doc)."""
 
     name = "gain_rate"
     replan_period: float | None = 2.0  # [s]
@@ -392,9 +460,10 @@ class GainRate:
 
 
 STRATEGIES: dict[str, type] = {
-    cls.name: cls for cls in (Nearest, LargestClosest, LargestRandom, LargestRandomRaw, ExploreLite, GainRate)
+    cls.name: cls
+    for cls in (Nearest, LargestClosest, LargestRandom, LargestRandomRaw, ExploreLite, FrontierTravel, GainRate)
 }
-DEFAULT_STRATEGY = "gain_rate"
+DEFAULT_STRATEGY = "frontier_travel"
 
 
 def make_strategy(name: str, **params: object) -> GoalStrategy:

@@ -29,13 +29,14 @@ def three_rooms(folder: Path) -> Path:
 
 
 @pytest.mark.slow
-def test_gain_rate_explores_three_rooms_without_touching_anything(tmp_path: Path) -> None:
+@pytest.mark.parametrize("strategy", ["frontier_travel", "gain_rate"])
+def test_explores_three_rooms_without_touching_anything(tmp_path: Path, strategy: str) -> None:
     from homing.benchmarks.explore import run_one
     from homing.mapping.map_io import load_grid
 
     world = three_rooms(tmp_path)
     saved = tmp_path / "final.yaml"
-    r = run_one(str(world), "gain_rate", seed=4, minutes=6.0, save_map=str(saved))
+    r = run_one(str(world), strategy, seed=4, minutes=6.0, save_map=str(saved))
     assert r.done, "no frontier left before the time limit"
     assert r.coverage >= 0.95, r  # of the free area reachable from the dock, from the sim's truth
     assert r.bumps == 0

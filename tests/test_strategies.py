@@ -145,3 +145,51 @@ def test_explorer_blacklists_a_goal_without_progress_and_chooses_again():
     at_goal = Pose2(later.goal.x - 0.1, later.goal.y, 0.0)
     nxt = ex.update(grid, at_goal, dist, 32.0)
     assert nxt.goal is None or nxt.goal.distance_to(later.goal) > 0.2
+
+
+def _near_distance(dist: np.ndarray, cells: np.ndarray, radius: float) -> float:
+    """The planner's least distance to a cell within ``radius`` [cells] of any of ``cells`` (plain loops)."""
+    best = np.inf
+    k = int(np.ceil(radius))
+    for r, c in cells:
+        for dr in range(-k, k + 1):
+            for dc in range(-k, k + 1):
+                rr, cc = r + dr, c + dc
+                if dr * dr + dc * dc <= radius * radius and 0 <= rr < dist.shape[0] and 0 <= cc < dist.shape[1]:
+                    best = min(best, float(dist[rr, cc]))
+    return best
+
+
+def test_frontier_travel_weighs_travel_distance_against_frontier_length():
+    """Cost = travel distance − frontier length (metres both): the 1.5 m pocket 2 m away beats the 2 m-wide
+    open end 7 m down the corridor, which explore_lite's 0.15/m straight-line term would barely tell apart."""
+    ctx = _ctx()
+    ft = make_strategy("frontier_travel")
+    segs = ft.frontiers(ctx)
+    radius = (ctx.robot_radius + RES) / RES
+    costs = [_near_distance(ctx.distance, s.cells, radius) - s.size * RES for s in segs]
+    best = segs[int(np.argmin(costs))]
+    choice = ft.choose(ctx)
+    assert choice is not None and choice.segment is not None
+    assert np.array_equal(choice.segment.cells, best.cells)
+    assert choice.cell[1] < 60  # the pocket, not the east end
+    cr, cc = best.centroid()
+    assert np.hypot(choice.cell[0] - cr, choice.cell[1] - cc) * RES <= 1.0
+    assert np.isfinite(ctx.distance[choice.cell])
+
+
+def test_frontier_travel_visits_frontiers_smaller_than_explore_lite_minimum_once_no_other_is_left():
+    """A closed room with one 0.9 m gap onto unknown, of which 0.5 m is frontier the robot can reach (its
+    footprint keeps it 0.19 m off each side): explore_lite (min 0.75 m) says done, frontier_travel goes."""
+    g = np.full((60, 60), OCCUPIED, dtype=np.int8)
+    g[10:50, 10:50] = FREE
+    g[10:50, 9] = g[10:50, 50] = g[9, 9:51] = g[50, 9:51] = OCCUPIED
+    g[16:34, 5:10] = UNKNOWN  # an 18-cell gap in the west wall onto unknown
+    robot = (30, 40)
+    dist = travel_distance(g, RES, robot)
+    ctx = GoalContext(g, RES, (30.0, 40.0), 0.0, dist, np.zeros(g.shape, bool), np.random.default_rng(0))
+    assert make_strategy("explore_lite").choose(ctx) is None
+    choice = make_strategy("frontier_travel").choose(ctx)
+    assert choice is not None
+    assert 16 <= choice.cell[0] < 34 and choice.cell[1] <= 14  # at the gap
+
