@@ -10,11 +10,13 @@ scan's end points are scored by summing the field under them. The search:
    (angles × offsets × points) gather; each finer level searches ±1 step
    around the best pose of the level above;
 2. optionally (``refine=True``) Gauss–Newton on the bilinearly interpolated
-   fine field from the best correlative pose, anchored to it. It is off by
-   default: on a drifting loop it slid the pose along corridors more than
-   it gained in sub-cell accuracy (the finest correlative step is one cell
-   and 0.5°). A small penalty for leaving the odometry prior breaks the ties
-   a featureless corridor produces.
+   fine field from the best correlative pose, anchored to it, for sub-cell
+   accuracy (the finest correlative step is one cell and 0.5°). It is off
+   by default: with a loose heading prior it slid the pose along corridors
+   of a drifting loop. Grid SLAM's scan-to-scan tracking turns it on
+   together with a tight heading prior (:mod:`homing.mapping.grid_slam`).
+   A small penalty for leaving the odometry prior breaks the ties a
+   featureless corridor produces.
 
 The result is accepted only if enough of the scan lands on known walls
 (``min_score``); otherwise the caller should keep odometry. Matching is done
@@ -122,9 +124,11 @@ class CorrelativeMatcher:
         min_score: float = MIN_SCORE,
         refine: bool = False,
         prior_xy: float = PRIOR_XY,
+        prior_theta: float = PRIOR_THETA,
     ) -> None:
         self.window_xy = window_xy
         self.prior_xy = prior_xy  # [m]
+        self.prior_theta = prior_theta  # [rad]
         self.window_theta = window_theta
         self.levels = levels
         self.sigma = sigma
@@ -164,7 +168,7 @@ class CorrelativeMatcher:
         offs = np.arange(-n_xy, n_xy + 1) * top_res
         thetas = prior.theta + np.arange(-n_a, n_a + 1) * a_step
         x, y, th = _search(top_vals, top_res, field.origin, pts, prior.x + offs, prior.y + offs, thetas, prior,
-                           self.prior_xy)
+                           self.prior_xy, self.prior_theta)
         # Finer levels: ±1 step around the best of the coarser level.
         for k in range(self.levels - 1, -1, -1):
             vals, lres = levels[k]
@@ -172,7 +176,7 @@ class CorrelativeMatcher:
             step = np.array([-1.0, 0.0, 1.0])
             x, y, th = _search(
                 vals, lres, field.origin, pts, x + step * lres, y + step * lres, th + step * a_step, prior,
-                self.prior_xy,
+                self.prior_xy, self.prior_theta,
             )
         return Pose2(x, y, th)
 
@@ -223,6 +227,7 @@ def _search(
     thetas: np.ndarray,
     prior: Pose2,
     prior_xy: float = PRIOR_XY,
+    prior_theta: float = PRIOR_THETA,
 ) -> tuple[float, float, float]:
     """Score every pose of the grid xs × ys × thetas at once; return the best (x, y, θ).
 
@@ -241,7 +246,7 @@ def _search(
     dth = np.arctan2(np.sin(thetas - prior.theta), np.cos(thetas - prior.theta))
     penalty = PRIOR_PENALTY * len(pts) * (
         ((xs[None, :, None] - prior.x) ** 2 + (ys[None, None, :] - prior.y) ** 2) / prior_xy**2
-        + (dth[:, None, None] / PRIOR_THETA) ** 2
+        + (dth[:, None, None] / prior_theta) ** 2
     )
     scores = vals.sum(axis=-1) - penalty  # (T, X, Y)
     t, i, j = np.unravel_index(int(np.argmax(scores)), scores.shape)
