@@ -23,7 +23,9 @@ Per run, the thesis's columns:
 
 and, from the simulator's ground truth (evaluation only,
 :mod:`homing.mapping.evaluate`): coverage of the free area reachable from
-the dock, the time to 95 % coverage [s], and bumper presses. Ratios to
+the dock, the time to 95 % coverage [s], the grid's cell agreement with the
+true map on its observed cells (:func:`homing.mapping.evaluate.cell_agreement`:
+how good a map the run built), and bumper presses. Ratios to
 ``nearest`` and to ``explore_lite`` are computed run by run (same world,
 same seed), then the median is reported.
 
@@ -235,7 +237,7 @@ def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
         out.setdefault(world, {})[strategy] = {
             "efficiency": med("efficiency"), "area": med("area"), "coverage": med("coverage"),
             "min_coverage": min(r.coverage for r in runs), "free_coverage": med("free_coverage"),
-            "path_length": med("path_length"),
+            "path_length": med("path_length"), "agreement": med("agreement"),
             "farthest": med("farthest"), "t95": med("t95"), "bumps": sum(r.bumps for r in runs),
             "ratio_vs_nearest": r_near, "ratio_vs_explore_lite": r_lite, "runs": len(runs),
         }  # fmt: skip
@@ -310,14 +312,14 @@ def run(args: argparse.Namespace) -> int:
             if s is None:
                 continue
             rows.append([world, strategy, s["efficiency"], s["farthest"], s["path_length"], s["area"],
-                         s["coverage"], s["min_coverage"], s["t95"], s["bumps"], s["ratio_vs_nearest"],
-                         s["ratio_vs_explore_lite"]])
+                         s["coverage"], s["min_coverage"], s["t95"], s["agreement"], s["bumps"],
+                         s["ratio_vs_nearest"], s["ratio_vs_explore_lite"]])
     print_table(
         f"Exploration, {args.minutes:g} simulated min sessions; eff = area / time at first 95 % coverage "
         f"(else final area / session length); medians over {args.seeds} seed(s) "
         f"({len(results)} runs, {time.monotonic() - t0:.0f} s wall, median rtf "
         f"{_median([r.rtf for r in results]):.1f}×)",
-        ["world", "strategy", "eff m²/s", "FD m", "PL m", "AE m²", "coverage", "min cov", "t95 s", "bumps",
+        ["world", "strategy", "eff m²/s", "FD m", "PL m", "AE m²", "coverage", "min cov", "t95 s", "agree", "bumps",
          "×nearest", "×explore_lite"],
         rows,
     )  # fmt: skip

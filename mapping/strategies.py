@@ -39,13 +39,13 @@ choose again live in :mod:`homing.mapping.explorer`, shared by all.
   is left, ones down to ``CRUMB_SIZE`` are still visited, so the run does not
   end short of the whole map (explore_lite's "ends early").
 - ``gain_rate`` — information gain per travel time (the default before
-  ``frontier_travel``: better in worlds of many small rooms, slower in halls,
-  where it leaves a hall half-seen for a bigger gain elsewhere and comes back). Candidate
-  goals are the reachable cells of every smoothed segment plus viewpoints
-  standing back from them in known free space (a ``SETBACK_STRIDE``
-  lattice within ``SETBACK``: the lidar sees a frontier's unknown from
-  there without driving to its edge, and the robot stays in the open where
-  the controller runs at full speed). Score = unknown area the lidar would
+  ``frontier_travel``: better in worlds of many small rooms, slower in
+  halls, where it leaves a hall half-seen for a bigger gain elsewhere and
+  comes back). Candidate goals are the reachable cells of every smoothed
+  segment plus viewpoints standing back from them in known free space (a
+  ``SETBACK_STRIDE`` lattice within ``SETBACK``: the lidar sees a
+  frontier's unknown from there without driving to its edge, and the robot
+  stays in the open where the controller runs at full speed). Score = unknown area the lidar would
   see from the goal within ``VIEW_RADIUS`` (ray cast, :func:`visible_unknown`,
   so unknown space behind a mapped wall does not draw the robot to it)
   divided by the travel time there: the planner's travel distance / speed
@@ -232,8 +232,10 @@ class ExploreLite:
         self.gain_scale = gain_scale
         self.min_frontier_size = min_frontier_size
 
-    def frontiers(self, ctx: GoalContext) -> list[FrontierSegment]:
-        """Unknown cells 4-adjacent to a free cell the robot can reach, grouped 8-connected, ≥ min size."""
+    def frontiers(self, ctx: GoalContext, min_size: float | None = None) -> list[FrontierSegment]:
+        """Unknown cells 4-adjacent to a free cell the robot can reach, grouped 8-connected, ≥ ``min_size`` [m]
+        (default ``min_frontier_size``)."""
+        min_size = self.min_frontier_size if min_size is None else min_size
         g = ctx.grid
         reach_free = ((g == FREE) & np.isfinite(ctx.distance)).astype(np.uint8)
         cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
@@ -247,7 +249,7 @@ class ExploreLite:
         splits = np.flatnonzero(np.diff(lab)) + 1
         out: list[FrontierSegment] = []
         for r, c in zip(np.split(rows, splits), np.split(cols, splits), strict=False):
-            if len(r) and len(r) * ctx.resolution >= self.min_frontier_size:
+            if len(r) and len(r) * ctx.resolution >= min_size:
                 out.append(FrontierSegment(np.column_stack([r, c]).astype(np.int64), len(out)))
         return out
 
@@ -262,7 +264,10 @@ class ExploreLite:
         return costs
 
     def choose(self, ctx: GoalContext) -> GoalChoice | None:
-        segs = self.frontiers(ctx)
+        return self._choose(ctx, self.min_frontier_size)
+
+    def _choose(self, ctx: GoalContext, min_size: float) -> GoalChoice | None:
+        segs = self.frontiers(ctx, min_size)
         if not segs:
             return None
         res = ctx.resolution
@@ -296,15 +301,11 @@ class FrontierTravel(ExploreLite):
         self.crumb_size = crumb_size
 
     def choose(self, ctx: GoalContext) -> GoalChoice | None:
-        choice = super().choose(ctx)
+        choice = self._choose(ctx, self.min_frontier_size)
         if choice is None and self.crumb_size < self.min_frontier_size:
             # No frontier of explore_lite's minimum size is left: visit the smaller ones too, rather than stop
             # short of the whole map (explore_lite's "ends early").
-            full, self.min_frontier_size = self.min_frontier_size, self.crumb_size
-            try:
-                choice = super().choose(ctx)
-            finally:
-                self.min_frontier_size = full
+            choice = self._choose(ctx, self.crumb_size)
         return choice
 
     def costs(self, ctx: GoalContext, segs: list[FrontierSegment]) -> list[float]:
