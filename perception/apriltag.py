@@ -22,8 +22,12 @@ Demo: ``python -m homing.perception.apriltag --plot tags.png``.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import math
-from collections.abc import Mapping
+import os
+import sys
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -98,6 +102,33 @@ def _safe_detector_class(base: type) -> type:
             super().__del__()
 
     return SafeDetector
+
+
+@contextmanager
+def c_stderr_silenced() -> Iterator[None]:
+    """Send what C code writes to stderr (file descriptor 2) to /dev/null for the duration.
+
+    libapriltag's pose estimation ``fprintf(stderr, …)``s "Error, more than
+    one new minima found." whenever a tag's two pose solutions nearly tie —
+    harmless, and hundreds of times in a run, into the terminal under the
+    live view. Python's buffer is flushed first and C's before the
+    descriptor is put back, so nothing written before is lost and nothing
+    written inside leaks out afterwards.
+    """
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        _LIBC.fflush(None)
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
+_LIBC = ctypes.CDLL(None)
 
 
 @dataclass(frozen=True)
@@ -250,7 +281,8 @@ class TagDetector:
         grey = np.ascontiguousarray(frame.grey())
         # The pose's translation scales with the tag size and its rotation does
         # not, so one unit-size estimate serves tags of every size.
-        dets = self._detector.detect(grey, True, (info.fx, info.fy, info.cx, info.cy), 1.0)
+        with c_stderr_silenced():
+            dets = self._detector.detect(grey, True, (info.fx, info.fy, info.cx, info.cy), 1.0)
         out = []
         for d in dets:
             size = self.size_of(d.tag_id)

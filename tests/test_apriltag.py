@@ -138,3 +138,23 @@ def test_several_tags_in_one_frame_are_told_apart_by_id():
     assert set(found) == set(truth)
     for tag_id, (x, y) in truth.items():
         assert math.hypot(found[tag_id].pose.x - x, found[tag_id].pose.y - y) < 0.04
+
+
+def test_c_stderr_is_silenced_only_inside_the_detection_window(capfd: pytest.CaptureFixture[str]) -> None:
+    """libapriltag fprintf()s a harmless message to stderr per ambiguous pose, which would run into the terminal."""
+    import ctypes
+    import sys
+
+    from homing.perception.apriltag import c_stderr_silenced
+
+    libc = ctypes.CDLL(None)
+    c_stderr = ctypes.c_void_p.in_dll(libc, "stderr")
+    print("python before", file=sys.stderr)
+    with c_stderr_silenced():
+        libc.fprintf(c_stderr, b"Error, more than one new minima found.\n")
+    libc.fprintf(c_stderr, b"C after\n")
+    libc.fflush(None)
+    err = capfd.readouterr().err
+    assert "python before" in err
+    assert "C after" in err
+    assert "minima" not in err
