@@ -125,6 +125,16 @@ def test_unregistered_service_is_a_clear_error(tmp_path: Path) -> None:
     assert any("unknown service 'navigatoin'" in m and "did you mean 'navigation'" in m for _, _, m in got), got
 
 
+def test_a_name_with_a_line_break_still_gives_one_error_line(tmp_path: Path) -> None:
+    """Found by test_random_missions_never_raise: a service named "\r" split the report in two."""
+    path = write(tmp_path, 'services: ["\\r"]\ntree: Stop\n')
+    code, _, err = check(path)
+    assert code == 2
+    lines = err.splitlines()
+    assert len(lines) == 1 and ERROR_LINE.match(lines[0]), err
+    assert "unknown service '\\r'" in lines[0]
+
+
 def test_parameter_substitution_and_units(tmp_path: Path) -> None:
     from homing.missions.compiler import compile_mission
 

@@ -42,9 +42,12 @@ class UserError(Exception):
         self.location = Location(str(file), line, col) if file is not None else None
 
     def __str__(self) -> str:
+        # One line whatever the user's text quoted in the message holds (a name with a carriage return in it
+        # would otherwise split the report): control characters are shown escaped.
+        message = "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in self.message)
         if self.location is None:
-            return self.message
-        return f"{self.location}: {self.message}"
+            return message
+        return f"{self.location}: {message}"
 
 
 class UserErrors(UserError):
