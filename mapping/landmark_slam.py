@@ -53,10 +53,11 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Protocol
 
 import gtsam
 import numpy as np
+from homing.mapping import scan_closure
 from homing.perception.apriltag import TagMeasurement
 from homing.robot.frames import wrap_angle
 from homing.robot.turtlebot import (
@@ -244,7 +245,7 @@ class LandmarkSlam:
         self._map_to_odom = Pose2()
         self._guesses: list[Pose2] = []  # each keyframe's map pose as estimated when it was added
         self._guess_xy = np.zeros((0, 2))  # [m] their positions, for the closure search
-        self._references: dict[int, Any] = {}  # keyframe index → its scan prepared for matching
+        self._references: dict[int, scan_closure.Reference] = {}  # keyframe index → its scan ready for matching
         self._closures: list[gtsam.NonlinearFactor] = []  # lidar factors waiting for the next iSAM2 update
         self.n_closures = 0
         self.closure_ms: list[float] = []  # wall time of each scan match [ms]
@@ -329,8 +330,6 @@ class LandmarkSlam:
 
     def _close_loop(self) -> None:
         """Match the newest keyframe's scan to the nearest old keyframe's; queue the factor if it converged."""
-        from homing.mapping import scan_closure
-
         kf = self.keyframes[-1]
         if self.cfg.closure_radius <= 0.0 or kf.scan is None or kf.index % max(self.cfg.closure_every, 1):
             return

@@ -226,8 +226,8 @@ def _search(
     ys: np.ndarray,
     thetas: np.ndarray,
     prior: Pose2,
-    prior_xy: float = PRIOR_XY,
-    prior_theta: float = PRIOR_THETA,
+    prior_xy: float,
+    prior_theta: float,
 ) -> tuple[float, float, float]:
     """Score every pose of the grid xs × ys × thetas at once; return the best (x, y, θ).
 

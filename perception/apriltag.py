@@ -29,6 +29,7 @@ import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from functools import cache
 
 import numpy as np
 from homing.robot.frames import homogeneous, wrap_angle
@@ -83,6 +84,7 @@ class Rejection:
     value: float
 
 
+@cache
 def _safe_detector_class(base: type) -> type:
     """``pupil_apriltags.Detector`` whose destructor does not read a freed tag family (pupil-labs/apriltags#46).
 
@@ -102,6 +104,9 @@ def _safe_detector_class(base: type) -> type:
             super().__del__()
 
     return SafeDetector
+
+
+_LIBC = ctypes.CDLL(None)  # the process's C library: fflush() for c_stderr_silenced
 
 
 @contextmanager
@@ -126,9 +131,6 @@ def c_stderr_silenced() -> Iterator[None]:
         os.dup2(saved, 2)
         os.close(saved)
         os.close(devnull)
-
-
-_LIBC = ctypes.CDLL(None)
 
 
 @dataclass(frozen=True)
