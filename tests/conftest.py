@@ -1,11 +1,19 @@
-"""Shared fixtures: where the public test worlds are, and seeded generators."""
+"""Shared fixtures: where the public test worlds are, and seeded generators; Hypothesis derandomised."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import settings
+
+# The property tests draw the same examples every run, so a suite that passed passes again (CI lands on
+# it). To search fresh examples, as a bug hunt: HYPOTHESIS_PROFILE=explore pytest tests/test_mission_check.py
+settings.register_profile("seeded", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "seeded"))
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED_WORLDS = REPO.parent / "shared" / "worlds"
