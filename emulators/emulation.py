@@ -113,6 +113,18 @@ class Emulation:
         """The link of ``device``: 'base' or 'lidar'."""
         return {"base": self.base_link, "lidar": self.lidar_link}[device]
 
+    def unplug(self, device: str) -> None:
+        """Pull ``device``'s cable ('base' or 'lidar'): its pty closes and its link disappears."""
+        with self.lock:
+            self.link(device).unplug()
+            if device == "lidar":
+                self.lidar.receive(bytes((0xA5, 0x25)))  # a lidar without power stops scanning
+
+    def replug(self, device: str) -> None:
+        """Plug ``device`` back in: a new pty behind the same link."""
+        with self.lock:
+            self.link(device).replug()
+
     def _run(self) -> None:
         start = last = time.monotonic()
         while not self._stop.is_set():

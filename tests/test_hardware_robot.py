@@ -74,11 +74,11 @@ def test_lost_device_stops_the_base_and_is_picked_up_again(emulation: Emulation)
     try:
         robot.command(-0.1, 0.0)
         assert _until(lambda: emulation.base.speed == -100, 1.0)
-        emulation.lidar_link.unplug()
+        emulation.unplug("lidar")
         assert _until(lambda: robot.observe().devices_lost == ("lidar",), 3.0)
         assert robot.command(-0.1, 0.0).v == 0.0  # no lidar, no driving
         assert _until(lambda: emulation.base.speed == 0, 1.0)
-        emulation.lidar_link.replug()
+        emulation.replug("lidar")
         assert _until(lambda: robot.observe().devices_lost == (), 6.0)
         assert robot.lidar.reconnects >= 1
         assert robot.command(-0.1, 0.0).v == pytest.approx(-0.1)
@@ -132,3 +132,56 @@ def test_robot_file_mistakes_are_located(tmp_path: Path, text: str, message: str
     with pytest.raises(UserError) as err:
         load_robot(path)
     assert str(err.value).startswith(f"{path}:") and message in str(err.value)
+
+
+GUARD_MISSION = """\
+mission: devices_guard
+rate: 10
+services: []
+tree:
+  reactive_fallback:
+    name: Lifecycle
+    children:
+      - reactive_sequence:
+          name: Healthy
+          children:
+            - DevicesOk
+            - sequence:
+                - MissionState: {state: Undocking}
+                - Drive: {v: -0.05, seconds: 30}
+      - sequence:
+          name: ErrorState
+          children:
+            - MissionState: {state: Error}
+            - Running
+"""
+
+
+def test_a_lost_device_sends_the_tree_to_error_and_back(emulation: Emulation, tmp_path: Path) -> None:
+    from homing.missions.compiler import compile_mission
+    from homing.missions.runner import Runner
+
+    (tmp_path / "guard.yaml").write_text(GUARD_MISSION)
+    robot = open_robot(emulation.robot_file)
+    seen: list[tuple[float, str, int]] = []
+
+    def tick(runner: Runner) -> None:
+        t = runner.now - runner.start
+        if 1.0 <= t < 1.1:
+            emulation.unplug("base")
+        if 3.0 <= t < 3.1:
+            emulation.replug("base")
+        seen.append((t, runner.read("/mission/state"), emulation.base.speed))
+
+    try:
+        runner = Runner(compile_mission(tmp_path / "guard.yaml"), robot, until=7.0, on_tick=tick)
+        result = runner.run()
+    finally:
+        robot.close()
+    assert result.reason == "time_limit"
+    states = [s for _, s, _ in seen]
+    first_error = states.index("Error")
+    assert states[0] == "Undocking" and 1.0 < seen[first_error][0] < 2.0  # the base's silence is seen in 0.3 s
+    back = states.index("Undocking", first_error)
+    assert seen[back][0] < 6.5  # the base is opened again and the mission resumes
+    assert seen[-1][2] == -50  # driving again at −0.05 m/s
