@@ -62,6 +62,11 @@ def test_assembler_turns_clockwise_nodes_into_a_ccw_scan() -> None:
     (scan,) = asm.add(nodes[:1])
     assert scan.stamp == 1.5 and scan.laser_pose == Pose2(0.1, 0.0, math.pi)
     assert np.isfinite(scan.ranges).sum() == 1 and scan.ranges[10] == pytest.approx(2.0)
+    # a start flag where the angle does not wrap (a node misread from noise) does not split the revolution
+    spurious = rp.decode_node(rp.encode_node(180.0, 3000.0, 10, True))
+    asm = rp.ScanAssembler(0.15, 6.0)
+    scans = asm.add(nodes[:180] + [spurious] + nodes[180:] + nodes[:1])
+    assert len(scans) == 1 and asm.dropped == 0
 
 
 def _serve(firmware: RplidarFirmware, link: PtyLink, scans: list[np.ndarray], stop: threading.Event) -> None:

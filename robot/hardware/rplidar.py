@@ -12,7 +12,8 @@ protocol is small and documented (:mod:`homing.robot.hardware.rplidar_protocol`)
 so it is spoken here over pyserial.
 
 :class:`RPLidar` on (re)connect: motor on (DTR low), STOP, GET_HEALTH
-(an Error status is reset once), then SCAN; a thread parses the node
+(an Error status is reset once; a garbled answer is asked for again,
+three times in all), then SCAN; a thread parses the node
 stream and keeps the latest assembled :class:`~homing.robot.types.Scan`,
 stamped on the adapter's clock when its first node arrived.
 """
@@ -30,6 +31,7 @@ from homing.robot.types import Pose2, Scan
 
 SILENCE = 1.0  # [s] more than five revolutions without a byte: the lidar is lost
 REPLY_TIMEOUT = 1.0  # [s] for GET_HEALTH's answer
+HANDSHAKE_TRIES = 3
 
 
 class LidarError(DeviceError):
@@ -55,15 +57,11 @@ class RPLidar(SerialDevice):
             return
         _set_dtr(ser, False)  # A1: the USB adapter's DTR drives MOTOCTL; low spins the motor
         try:
-            ser.write(rp.request(rp.STOP))
-            time.sleep(0.002)
-            ser.reset_input_buffer()
-            self.health = self._health(ser)
+            self.health = self._handshake(ser)
             if self.health[0] == rp.HEALTH_ERROR:
                 ser.write(rp.request(rp.RESET))
                 time.sleep(0.01)
-                ser.reset_input_buffer()
-                self.health = self._health(ser)
+                self.health = self._handshake(ser)
                 if self.health[0] == rp.HEALTH_ERROR:
                     raise LidarError(f"hardware error {self.health[1]} after a reset")
             self.reader.reset()
@@ -72,6 +70,19 @@ class RPLidar(SerialDevice):
             self.connected = False
         with self.lock:
             self.assembler._nodes.clear()
+
+    def _handshake(self, ser: serial.Serial) -> tuple[int, int]:
+        """STOP, flush, GET_HEALTH; tried HANDSHAKE_TRIES times (a noisy line can garble one reply)."""
+        for attempt in range(HANDSHAKE_TRIES):
+            ser.write(rp.request(rp.STOP))
+            time.sleep(0.002)
+            ser.reset_input_buffer()
+            try:
+                return self._health(ser)
+            except LidarError:
+                if attempt == HANDSHAKE_TRIES - 1:
+                    raise
+        raise AssertionError("unreachable")
 
     def _health(self, ser: serial.Serial) -> tuple[int, int]:
         ser.write(rp.request(rp.GET_HEALTH))

@@ -193,7 +193,9 @@ class ScanAssembler:
     it within half a degree (quantisation: angle 1/64°, distance 1/4 mm).
     Rays with no node, a zero distance or ``quality`` under
     ``min_quality`` hold ``inf``. A scan is stamped with the arrival time
-    of its first node; a revolution with fewer than ``min_nodes`` nodes
+    of its first node. A start flag begins a new revolution only where the
+    angle wraps (a node misread out of line noise may carry one). A
+    revolution with fewer than ``min_nodes`` nodes
     (the partial one after start-up or a resync) is dropped.
     """
 
@@ -209,7 +211,8 @@ class ScanAssembler:
         """Add nodes in arrival order; returns the scans of the revolutions they complete."""
         out: list[Scan] = []
         for node in nodes:
-            if node.start and self._nodes:
+            # a start flag counts only where the angle wraps: a node misread out of garbage can carry one
+            if node.start and self._nodes and self._nodes[-1].angle - node.angle > 180.0:
                 scan = self._finish()
                 if scan is not None:
                     out.append(scan)
