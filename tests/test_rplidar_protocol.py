@@ -48,7 +48,8 @@ def test_reader_resynchronises_after_garbage() -> None:
         out += reader.feed(stream[i : i + 64])
     assert len(out) == 360 and reader.stats.descriptors == 1
     assert reader.stats.skipped == 4 and reader.stats.resyncs == 2  # one stray byte before, three inside
-    assert [n.distance for n in out] == pytest.approx(np.linspace(500.0, 5000.0, 360), abs=0.125)
+    sent = np.linspace(500.0, 5000.0, 360)[(-np.arange(360)) % 360]  # node k measures ray −k (clockwise)
+    assert [n.distance for n in out] == pytest.approx(sent, abs=0.125)
 
 
 def test_assembler_turns_clockwise_nodes_into_a_ccw_scan() -> None:
@@ -56,7 +57,7 @@ def test_assembler_turns_clockwise_nodes_into_a_ccw_scan() -> None:
     ranges[10] = 2.0  # 10° counter-clockwise: the device reports it at 350° clockwise
     ranges[200] = 0.1  # under range_min: no return
     nodes = [rp.decode_node(b, stamp=1.5 + k * 1e-4) for k, b in enumerate(rp.scan_nodes(ranges))]
-    assert nodes[10].angle == 350.0
+    assert nodes[350].angle == 350.0 and nodes[350].distance == 2000.0
     asm = rp.ScanAssembler(0.15, 6.0, Pose2(0.1, 0.0, math.pi))
     assert asm.add(nodes) == []  # a revolution is complete when the next one starts
     (scan,) = asm.add(nodes[:1])

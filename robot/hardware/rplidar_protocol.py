@@ -244,16 +244,17 @@ class ScanAssembler:
 def scan_nodes(scan_ranges: np.ndarray, quality: int = 47) -> list[bytes]:
     """The nodes of one revolution for ``scan_ranges`` (N,) [m] at ``i·360/N``° CCW, ``inf`` = no return.
 
-    The device side of :class:`ScanAssembler`: angles become clockwise, the
-    first node carries the start flag, and a ray with no return is sent with
+    The device side of :class:`ScanAssembler`: nodes go out in the order the
+    clockwise-turning head measures them, the first carries the start flag, and a ray with no return is sent with
     distance 0 and quality 0 (as the A1 does).
     """
-    n = len(scan_ranges)
+    ranges = np.asarray(scan_ranges, dtype=float)
+    n = len(ranges)
     out = []
-    for i, r in enumerate(np.asarray(scan_ranges, dtype=float)):
-        ccw = i * 360.0 / n
+    for k in range(n):  # the head turns clockwise: device angles rise through the revolution
+        r = ranges[(-k) % n]
         ok = math.isfinite(r) and r > 0
-        out.append(encode_node((-ccw) % 360.0, r * 1000.0 if ok else 0.0, quality if ok else 0, i == 0))
+        out.append(encode_node(k * 360.0 / n, r * 1000.0 if ok else 0.0, quality if ok else 0, k == 0))
     return out
 
 
