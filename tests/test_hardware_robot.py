@@ -185,3 +185,12 @@ def test_a_lost_device_sends_the_tree_to_error_and_back(emulation: Emulation, tm
     back = states.index("Undocking", first_error)
     assert seen[back][0] < 6.5  # the base is opened again and the mission resumes
     assert seen[-1][2] == -50  # driving again at −0.05 m/s
+
+
+def test_the_bundled_example_robot_file_is_valid() -> None:
+    from homing.robot import hardware
+
+    config = load_robot(Path(hardware.__file__).parent / "robot.example.yaml")
+    assert config.base.port == "/dev/kobuki" and config.lidar.port == "/dev/rplidar"
+    assert config.camera is not None and config.camera.source == 0 and config.camera.rate == 5.0
+    assert config.computer_battery == Path("/sys/class/power_supply/BAT0")
