@@ -16,40 +16,39 @@ from __future__ import annotations
 from homing.behaviours.base import HomingBehaviour
 from homing.behaviours.keys import OBSERVATION_KEY
 from homing.behaviours.registry import register
+from homing.robot import Observation
 from py_trees.common import Status
 
 
-@register("DevicesOk", kind="condition")
-class DevicesOk(HomingBehaviour):
-    """SUCCESS while the adapter has every device (the simulator always does); FAILURE naming the lost ones."""
+class _ObservationCondition(HomingBehaviour):
+    """A condition on this tick's observation: subclasses say whether it holds, and why."""
 
     READS = (OBSERVATION_KEY,)
 
+    def check(self, obs: Observation) -> tuple[bool, str]:
+        raise NotImplementedError
+
     def update(self) -> Status:
         obs = self.observation()
-        if obs is None:
-            self.feedback_message = "no observation yet"
-            return Status.FAILURE
+        ok, self.feedback_message = (False, "no observation yet") if obs is None else self.check(obs)
+        return Status.SUCCESS if ok else Status.FAILURE
+
+
+@register("DevicesOk", kind="condition")
+class DevicesOk(_ObservationCondition):
+    """SUCCESS while the adapter has every device (the simulator always does); FAILURE naming the lost ones."""
+
+    def check(self, obs: Observation) -> tuple[bool, str]:
         if obs.devices_lost:
-            self.feedback_message = f"lost: {', '.join(obs.devices_lost)}"
-            return Status.FAILURE
-        self.feedback_message = "all devices present"
-        return Status.SUCCESS
+            return False, f"lost: {', '.join(obs.devices_lost)}"
+        return True, "all devices present"
 
 
 @register("WheelsDown", kind="condition")
-class WheelsDown(HomingBehaviour):
+class WheelsDown(_ObservationCondition):
     """SUCCESS while both wheels touch the floor; FAILURE when the base reports a wheel drop (lifted)."""
 
-    READS = (OBSERVATION_KEY,)
-
-    def update(self) -> Status:
-        obs = self.observation()
-        if obs is None:
-            self.feedback_message = "no observation yet"
-            return Status.FAILURE
+    def check(self, obs: Observation) -> tuple[bool, str]:
         if obs.switches.wheel_drop():
-            self.feedback_message = "wheel dropped: the robot is lifted or over an edge"
-            return Status.FAILURE
-        self.feedback_message = "wheels down"
-        return Status.SUCCESS
+            return False, "wheel dropped: the robot is lifted or over an edge"
+        return True, "wheels down"

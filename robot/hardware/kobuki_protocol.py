@@ -32,6 +32,8 @@ import struct
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
+from homing.robot.hardware.resync import ResyncBuffer, ResyncStats
+
 HEADER = b"\xaa\x55"
 MAX_PAYLOAD = 255  # [bytes] the length field is one byte
 FEEDBACK_PERIOD = 0.02  # [s] the base streams feedback at 50 Hz
@@ -275,14 +277,11 @@ def request_extra(flags: int) -> bytes:
 
 # --- finding packets in a stream ---------------------------------------------------------------------
 @dataclass
-class StreamStats:
-    """What a reader made of its byte stream so far."""
+class StreamStats(ResyncStats):
+    """What a reader made of its byte stream so far (and bytes fed, skipped, resynchronisations)."""
 
-    bytes: int = 0  # every byte fed
     packets: int = 0  # packets with a good checksum
     checksum_errors: int = 0  # framed packets dropped for a bad checksum
-    skipped: int = 0  # bytes thrown away looking for a header
-    resyncs: int = 0  # times the reader lost the frame and searched for the next header
     bad_payloads: int = 0  # good-checksum packets whose sub-payloads did not split cleanly
 
 
@@ -299,14 +298,13 @@ class PacketReader:
     """
 
     stats: StreamStats = field(default_factory=StreamStats)
-    _buf: bytearray = field(default_factory=bytearray)
-    _synced: bool = True
+    _rx: ResyncBuffer = field(default_factory=ResyncBuffer)
 
     def feed(self, chunk: bytes) -> list[bytes]:
         self.stats.bytes += len(chunk)
-        self._buf += chunk
+        buf = self._rx.buf
+        buf += chunk
         out: list[bytes] = []
-        buf = self._buf
         while True:
             start = buf.find(HEADER)
             if start < 0:
@@ -329,14 +327,8 @@ class PacketReader:
                 continue
             del buf[: 4 + length]
             self.stats.packets += 1
-            self._synced = True
+            self._rx.synced()
             out.append(body[1:-1])
 
     def _skip(self, n: int) -> None:
-        if n <= 0:
-            return
-        if self._synced:
-            self.stats.resyncs += 1
-            self._synced = False
-        self.stats.skipped += n
-        del self._buf[:n]
+        self._rx.skip(n, self.stats)

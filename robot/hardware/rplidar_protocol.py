@@ -33,6 +33,7 @@ import struct
 from dataclasses import dataclass, field
 
 import numpy as np
+from homing.robot.hardware.resync import ResyncBuffer, ResyncStats
 from homing.robot.types import Pose2, Scan
 
 SYNC = 0xA5
@@ -119,13 +120,10 @@ def decode_node(raw: bytes | bytearray, stamp: float = 0.0) -> Node:
 
 
 @dataclass
-class NodeStats:
-    """What a node reader made of its stream so far."""
+class NodeStats(ResyncStats):
+    """What a node reader made of its stream so far (and bytes fed, skipped, resynchronisations)."""
 
-    bytes: int = 0
     nodes: int = 0
-    skipped: int = 0  # bytes dropped looking for valid check bits or a descriptor
-    resyncs: int = 0  # runs of dropped bytes
     descriptors: int = 0
 
 
@@ -135,17 +133,16 @@ class NodeReader:
 
     stats: NodeStats = field(default_factory=NodeStats)
     streaming: bool = False
-    _buf: bytearray = field(default_factory=bytearray)
-    _synced: bool = True
+    _rx: ResyncBuffer = field(default_factory=ResyncBuffer)
 
     def reset(self) -> None:
         """Forget buffered bytes and wait for a new descriptor (after STOP and SCAN again)."""
-        self._buf.clear()
+        self._rx.buf.clear()
         self.streaming = False
 
     def feed(self, chunk: bytes, stamp: float = 0.0) -> list[Node]:
         self.stats.bytes += len(chunk)
-        buf = self._buf
+        buf = self._rx.buf
         buf += chunk
         out: list[Node] = []
         if not self.streaming:
@@ -161,7 +158,8 @@ class NodeReader:
                 if kind == TYPE_SCAN and mode == MODE_MULTI and length == SCAN_NODE_SIZE:
                     del buf[:DESCRIPTOR_SIZE]
                     self.stats.descriptors += 1
-                    self.streaming, self._synced = True, True
+                    self.streaming = True
+                    self._rx.synced()
                     break
                 self._skip(1)
         while len(buf) >= SCAN_NODE_SIZE:
@@ -171,17 +169,11 @@ class NodeReader:
             out.append(decode_node(buf[:SCAN_NODE_SIZE], stamp))
             del buf[:SCAN_NODE_SIZE]
             self.stats.nodes += 1
-            self._synced = True
+            self._rx.synced()
         return out
 
     def _skip(self, n: int) -> None:
-        if n <= 0:
-            return
-        if self._synced:
-            self.stats.resyncs += 1
-            self._synced = False
-        self.stats.skipped += n
-        del self._buf[:n]
+        self._rx.skip(n, self.stats)
 
 
 @dataclass
