@@ -22,6 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("mission", metavar="MISSION.yaml")
     robot = parser.add_mutually_exclusive_group(required=True)
     robot.add_argument("--world", help="a bundled world's name, a world YAML or a map_server YAML")
+    robot.add_argument("--robot", metavar="ROBOT.yaml", help="drive the real robot its robot file describes (wall clock)")
     robot.add_argument(
         "--adapter", metavar="MODULE:CALLABLE",
         help="build the robot with CALLABLE(seed=N) from MODULE instead (any RobotAdapter)",
@@ -58,6 +59,12 @@ def _adapter(args: argparse.Namespace) -> Any:
         except (ImportError, AttributeError) as err:
             raise UserError(f"--adapter {args.adapter}: {err}") from None
         return factory(seed=args.seed)
+    if args.robot:
+        try:
+            from homing.robot.hardware.robot import open_robot
+        except ImportError as err:
+            raise UserError(f"--robot needs the hardware extra (pip install 'homing[hardware]'): {err}") from None
+        return open_robot(args.robot)
     try:
         from homing.sim import SimRobot, load_world
     except ImportError as err:
