@@ -13,4 +13,5 @@ GRID_KEY = "/map/grid"  # homing.mapping.grid.OccupancyGrid
 POSE_KEY = "/map/pose"  # Pose2, base_link in map
 MAP_TO_ODOM_KEY = "/map/map_to_odom"  # Pose2
 NAVIGATOR_KEY = "/nav/navigator"  # homing.navigation.Navigator
+EXPLORE_GOAL_KEY = "/explore/goal"  # Pose2 in map or None, written by the Explore leaf
 TAGS_KEY = "/perception/tags"  # this tick's tag measurements in base_link
