@@ -11,7 +11,7 @@ drawn from those poses. The methods, as in Kümmerle et al. 2009's tables:
 - ``grid``: :class:`homing.mapping.grid_slam.GridSlam`, scan-to-map
   matching into one log-odds grid, as the robot runs it online, with the
   search window and plausibility gate widened for sparse scans
-  (``LOG_GRID``);
+  (``LOG_GRID_*``);
 - ``graph``: :class:`~homing.mapping.graph_slam.GraphSlam` with lidar loop
   closures, re-optimised in one batch at the end.
 
@@ -38,11 +38,10 @@ from homing.robot.types import Odometry, Pose2, Scan
 
 METHODS = ("odometry", "scan_matching", "grid", "graph")
 RESOLUTION = 0.05  # [m] cells of the grids drawn and matched
-LOG_GRID = {  # GridSlam for scans a metre apart (a corrected log keeps one scan per ≈ 1 m / 0.5 s)
-    "window_xy": 0.5, "window_theta": math.radians(12.0),  # [m, rad] search half-widths
-    "prior_xy": 0.10, "prior_theta": math.radians(3.0),  # [m, rad] the pull towards odometry
-    "max_correction": (0.5, math.radians(12.0)),  # [m, rad]
-}
+# GridSlam for scans a metre apart (a corrected log keeps one scan per ≈ 1 m / 0.5 s):
+LOG_GRID_WINDOW = (0.5, math.radians(12.0))  # [m, rad] search half-widths
+LOG_GRID_PRIOR = (0.10, math.radians(3.0))  # [m, rad] the pull towards odometry
+LOG_GRID_MAX_CORRECTION = (0.5, math.radians(12.0))  # [m, rad]
 
 
 @dataclass
@@ -109,10 +108,9 @@ def run_method(log: RunLog, method: str, max_range: float = MAX_RANGE, resolutio
 
 def _grid(data: list[tuple[float, Odometry, Scan | None]], max_range: float,
           resolution: float) -> tuple[list[float], list[Pose2], OccupancyGrid]:
-    cfg = LOG_GRID
-    matcher = CorrelativeMatcher(window_xy=cfg["window_xy"], window_theta=cfg["window_theta"],
-                                 prior_xy=cfg["prior_xy"], prior_theta=cfg["prior_theta"], refine=True)
-    slam = GridSlam(resolution, matcher=matcher, max_correction=cfg["max_correction"], match_range=max_range - 1.0)
+    matcher = CorrelativeMatcher(window_xy=LOG_GRID_WINDOW[0], window_theta=LOG_GRID_WINDOW[1],
+                                 prior_xy=LOG_GRID_PRIOR[0], prior_theta=LOG_GRID_PRIOR[1], refine=True)
+    slam = GridSlam(resolution, matcher=matcher, max_correction=LOG_GRID_MAX_CORRECTION, match_range=max_range - 1.0)
     stamps, poses = [], []
     for _stamp, odom, scan in data:
         if slam.update(odom, scan) and scan is not None:

@@ -151,7 +151,7 @@ def _read(path: Path, scan_topic: str | None, odom_topic: str | None) -> RunLog:
         base = laser = None
         wanted = [c for c in reader.connections if c.topic in (scan_t, odom_t) or c.msgtype == TF_TYPE]
         for conn, _t, raw in reader.messages(connections=wanted):
-            msg = reader.deserialize(raw, conn.msgtype)
+            msg: Any = reader.deserialize(raw, conn.msgtype)
             if conn.msgtype == TF_TYPE:
                 for t in msg.transforms:
                     tr = t.transform.translation
