@@ -13,6 +13,7 @@ GRID_KEY = "/map/grid"  # homing.mapping.grid.OccupancyGrid
 POSE_KEY = "/map/pose"  # Pose2, base_link in map
 MAP_TO_ODOM_KEY = "/map/map_to_odom"  # Pose2
 NAVIGATOR_KEY = "/nav/navigator"  # homing.navigation.Navigator
+EXPLORE_GOAL_KEY = "/explore/goal"  # Pose2 in map or None, written by the Explore leaf
 TAGS_KEY = "/perception/tags"  # this tick's tag measurements in base_link
 DOCK_KEY = "/nav/dock"  # Pose2: the docked robot's pose in map (refreshed whenever the base charges on the dock)
 ENERGY_KEY = "/energy/policy"  # {battery: {percent, undock, home, reserve}} [%], written by the energy service

@@ -59,6 +59,8 @@ class GridSlam:
         matcher: ScanMatcher | None = None,
         use_matcher: bool = True,
         grid: OccupancyGrid | None = None,
+        max_correction: tuple[float, float] = (MAX_CORRECTION_XY, MAX_CORRECTION_THETA),
+        match_range: float | None = None,
     ) -> None:
         self.grid = grid if grid is not None else OccupancyGrid(resolution)
         self.matcher: ScanMatcher | None = (
@@ -67,8 +69,11 @@ class GridSlam:
             if use_matcher
             else None
         )
+        self.max_correction = max_correction  # [m, rad] a larger jump from the prediction is a false match
+        self.match_range = match_range  # [m] end points matched (None: the scan's range_max − MATCH_RANGE_MARGIN)
         self.map_to_odom = Pose2()
         self.pose = Pose2()
+        self.scan_pose = Pose2()  # base_link in map where the last scan was fused
         self.scans_fused = 0
         self.matches_rejected = 0
         self.last_score = float("nan")
@@ -93,19 +98,20 @@ class GridSlam:
         corrected = predicted
         if self.matcher is not None and self.scans_fused >= WARMUP_SCANS:
             points = scan.points()
-            max_range = scan.range_max - MATCH_RANGE_MARGIN
+            max_range = scan.range_max - MATCH_RANGE_MARGIN if self.match_range is None else self.match_range
             result = self.matcher.match(self.grid, points, predicted, max_range)
             self.last_score = result.score
             jump = predicted.between(result.pose)
             plausible = (
-                math.hypot(jump.x, jump.y) <= MAX_CORRECTION_XY
-                and abs(wrap_angle(jump.theta)) <= MAX_CORRECTION_THETA
+                math.hypot(jump.x, jump.y) <= self.max_correction[0]
+                and abs(wrap_angle(jump.theta)) <= self.max_correction[1]
             )
             if result.ok and plausible:
                 corrected = result.pose
             else:
                 self.matches_rejected += 1
         self.map_to_odom = corrected.compose(odom_pose.inverse())
+        self.scan_pose = corrected
         self.grid.integrate(scan, corrected)
         self.scans_fused += 1
 

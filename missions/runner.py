@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import py_trees
-from homing.behaviours.keys import IDLE_KEY, TAGS_KEY
+from homing.behaviours.keys import EXPLORE_GOAL_KEY, IDLE_KEY, NAVIGATOR_KEY, TAGS_KEY
 from homing.behaviours.registry import Service
 from homing.missions.compiler import CompiledMission
 from homing.robot import Observation, RobotAdapter, Twist2
@@ -112,8 +112,9 @@ class Runner:
         self.bb = py_trees.blackboard.Client(name="runner")
         for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state", IDLE_KEY):
             self.bb.register_key(key=key, access=Access.WRITE)
-        if TAGS_KEY not in self.bb.remappings:
-            self.bb.register_key(key=TAGS_KEY, access=Access.READ)
+        for key in (TAGS_KEY, NAVIGATOR_KEY, EXPLORE_GOAL_KEY):  # logged with --record
+            if key not in self.bb.remappings:
+                self.bb.register_key(key=key, access=Access.READ)
         for key in self.mission.source.view_keys:
             if key not in self.bb.remappings:
                 self.bb.register_key(key=key, access=Access.READ)
@@ -172,6 +173,9 @@ class Runner:
         self.last_command = self.robot.command(cmd.v, cmd.omega) if isinstance(cmd, Twist2) else self.robot.command(0.0, 0.0)
         if rec is not None:
             rec.record_command(obs.stamp, self.last_command)
+            rec.record_image(obs.image)
+            nav = self.read(NAVIGATOR_KEY)
+            rec.record_plan(obs.stamp, getattr(nav, "path", None), self.read(EXPLORE_GOAL_KEY))
         self.ticks += 1
         return self.mission.root.status
 

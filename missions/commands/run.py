@@ -40,6 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--record", metavar="RUN",
         help="write a run log of everything sensed and commanded to RUN (see 'homing replay')",
     )  # fmt: skip
+    parser.add_argument("--record-images", action="store_true",
+                        help="with --record: also log the camera images (JPEG; exported to MCAP by 'homing replay')")
     parser.add_argument("--save-map", metavar="PATH", help="save the final /map/grid as a map_server map (PATH.yaml + .pgm)")
     add_set_argument(parser)
     parser.set_defaults(func=run)
@@ -74,11 +76,13 @@ def _adapter(args: argparse.Namespace) -> Any:
 
 def _recorder(args: argparse.Namespace, mission: Any, robot: Any) -> Any:
     """A run-log Recorder for ``--record`` with the run's metadata (None without the option)."""
+    from homing.errors import UserError
+
     if not args.record:
+        if getattr(args, "record_images", False):
+            raise UserError("--record-images needs --record RUN")
         return None
     from homing.missions.runlog import Recorder
-
-    from homing.errors import UserError
 
     meta: dict[str, Any] = {"world": args.world, "seed": args.seed, "mission": str(args.mission),
                             "adapter": args.adapter, "rate": args.rate or mission.rate}
@@ -86,7 +90,7 @@ def _recorder(args: argparse.Namespace, mission: Any, robot: Any) -> Any:
         if spec.name == "tag_slam":
             meta["tag_slam"] = {k: v for k, v in params.items() if isinstance(v, (int, float, str, bool))}
     try:
-        return Recorder(args.record, meta)
+        return Recorder(args.record, meta, images=bool(getattr(args, "record_images", False)))
     except OSError as err:
         raise UserError(f"--record: cannot write the run log: {err.strerror}", args.record) from None
 
