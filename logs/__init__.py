@@ -1,9 +1,9 @@
 """Log formats in and out: CARMEN logs and ROS 1/2 bags read into homing's run-log model, ROS 2 bags in MCAP written.
 
 :func:`open_log` reads any log homing knows — its own run logs
-(:mod:`homing.missions.runlog`), CARMEN logs (:mod:`homing.logs.carmen`),
+(:mod:`homing.logs.runlog`), CARMEN logs (:mod:`homing.logs.carmen`),
 ROS 1 ``.bag`` and ROS 2 bags (:mod:`homing.logs.rosbag`) — as a
-:class:`~homing.missions.runlog.RunLog`, so that offline SLAM, replay and
+:class:`~homing.logs.runlog.RunLog`, so that offline SLAM, replay and
 export treat them alike. :mod:`homing.logs.mcap_export` writes any of them
 as a ROS 2 bag in MCAP for Foxglove and ``ros2 bag play``.
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from homing.missions.runlog import MAGIC, RunLog
+from homing.logs.runlog import MAGIC, RunLog
 
 from homing.errors import UserError
 

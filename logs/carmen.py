@@ -56,7 +56,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from homing.missions.runlog import RunLog, odometry_record, scan_record
+from homing.logs.runlog import RunLog, odometry_record, scan_record
 from homing.robot.types import Odometry, Pose2, Scan, Twist2
 
 from homing.errors import UserError
@@ -240,7 +240,7 @@ def _same(a: Pose2, b: Pose2) -> bool:
 
 
 def read_carmen(path: str | Path) -> RunLog:
-    """The CARMEN log at ``path`` as a :class:`~homing.missions.runlog.RunLog` (scans, odometry, ``ref`` poses).
+    """The CARMEN log at ``path`` as a :class:`~homing.logs.runlog.RunLog` (scans, odometry, ``ref`` poses).
 
     ``meta`` holds ``format`` ("carmen"), ``corrected`` (the log stores a
     SLAM's corrected poses, see the module doc), ``no_return`` [m] and

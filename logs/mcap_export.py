@@ -41,8 +41,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from homing.logs.runlog import RunLog
 from homing.mapping.grid import OccupancyGrid
-from homing.missions.runlog import RunLog
 from homing.robot.types import Pose2
 
 MAP_PERIOD = 5.0  # [s] of log time between two /map messages

@@ -1,6 +1,6 @@
 """Offline SLAM over any log: odometry alone, incremental scan matching, the scan-matched grid, the lidar pose graph.
 
-One driver feeds a :class:`~homing.missions.runlog.RunLog` (a homing run,
+One driver feeds a :class:`~homing.logs.runlog.RunLog` (a homing run,
 a CARMEN log or a ROS bag, :func:`homing.logs.open_log`) tick by tick to a
 SLAM method and returns the pose at every scan and the occupancy grid
 drawn from those poses. The methods, as in Kümmerle et al. 2009's tables:
@@ -29,11 +29,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from homing.logs.runlog import RunLog
 from homing.mapping.graph_slam import MAX_RANGE, GraphConfig, GraphSlam
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
 from homing.mapping.scan_match import CorrelativeMatcher
-from homing.missions.runlog import RunLog
 from homing.robot.types import Odometry, Pose2, Scan
 
 METHODS = ("odometry", "scan_matching", "grid", "graph")

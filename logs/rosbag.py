@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from homing.missions.runlog import RunLog, odometry_record, scan_record
+from homing.logs.runlog import RunLog, odometry_record, scan_record
 from homing.robot.types import Odometry, Pose2, Scan, Twist2
 
 from homing.errors import UserError
@@ -114,7 +114,7 @@ def laser_in_base(tf: dict[str, tuple[str, Pose2]], base: str, laser: str) -> Po
 
 
 def read_bag(path: str | Path, scan_topic: str | None = None, odom_topic: str | None = None) -> RunLog:
-    """The bag at ``path`` as a :class:`~homing.missions.runlog.RunLog` of odometry and scans (see module doc)."""
+    """The bag at ``path`` as a :class:`~homing.logs.runlog.RunLog` of odometry and scans (see module doc)."""
     path = Path(path)
     try:
         return _read(path, scan_topic, odom_topic)

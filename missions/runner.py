@@ -17,7 +17,7 @@ Every status change of every node is reported with the adapter time to
 failing and starting again inside one tick) and halts it does not (a
 branch preempted by a higher priority).
 
-With a ``recorder`` (:class:`homing.missions.runlog.Recorder`) every tick is
+With a ``recorder`` (:class:`homing.logs.runlog.Recorder`) every tick is
 logged in the order ``homing replay`` needs to reproduce SLAM: the
 observation, then the tag sightings the services took at it
 (``/perception/tags``), then the command; status changes as they happen,
@@ -102,7 +102,7 @@ class Runner:
     observation: Observation | None = None
     services: list[Service] = field(default_factory=list)
     changes: int = 0
-    recorder: Any = None  # a homing.missions.runlog.Recorder (or None: nothing is logged)
+    recorder: Any = None  # a homing.logs.runlog.Recorder (or None: nothing is logged)
     truth: Callable[[], Any] | None = None  # the simulator's true pose, for the log only
 
     def __post_init__(self) -> None:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from homing.logs import open_log
 from homing.logs.mcap_export import export_mcap
-from homing.missions.runlog import RunLog, odometry_record, scan_record
+from homing.logs.runlog import RunLog, odometry_record, scan_record
 from homing.robot.types import Odometry, Pose2, Scan, Twist2
 
 from homing.errors import UserError

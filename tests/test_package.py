@@ -76,3 +76,17 @@ def test_readme_mission_example_compiles(tmp_path) -> None:
     path.write_text(block.group(1))
     mission = compile_mission(path)
     assert {spec.name for spec, _ in mission.services} == {"grid_slam", "navigation"}
+
+
+def test_log_formats_import_no_mission_language_simulator_or_benchmark() -> None:
+    """``homing.logs`` is a layer below the missions that record and replay logs (DESIGN.md, Layout)."""
+    import ast
+
+    above = ("homing.missions", "homing.behaviours", "homing.lifecycle", "homing.sim", "homing.benchmarks")
+    offenders = []
+    for path in sorted((REPO / "logs").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else (
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            offenders += [f"{path.name}:{node.lineno}: {n}" for n in names if n.startswith(above)]
+    assert not offenders, offenders

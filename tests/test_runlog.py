@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from homing.logs.runlog import MAGIC, Recorder, RunLog
 from homing.mapping.landmark_slam import LandmarkSlam
 from homing.mapping.landmark_synthetic import synthetic_loop
-from homing.missions.runlog import MAGIC, Recorder, RunLog
 from homing.robot.types import (
     IR,
     BatteryState,

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import homing.sim as sim  # noqa: E402 - part of the package: a broken simulator must fail, not skip
 import pytest
+from homing.logs.runlog import Recorder, RunLog
 from homing.missions.cli import main
 from homing.missions.commands.replay import replay_slam
 from homing.missions.compiler import compile_mission
-from homing.missions.runlog import Recorder, RunLog
 from homing.missions.runner import Runner
 
 TOUR = Path(__file__).resolve().parents[1] / "missions" / "examples" / "tag_tour.yaml"

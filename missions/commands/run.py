@@ -82,7 +82,7 @@ def _recorder(args: argparse.Namespace, mission: Any, robot: Any) -> Any:
         if getattr(args, "record_images", False):
             raise UserError("--record-images needs --record RUN")
         return None
-    from homing.missions.runlog import Recorder
+    from homing.logs.runlog import Recorder
 
     meta: dict[str, Any] = {"world": args.world, "seed": args.seed, "mission": str(args.mission),
                             "adapter": args.adapter, "rate": args.rate or mission.rate}
