@@ -37,10 +37,12 @@ import cv2
 import numpy as np
 from homing.mapping.grid import OccupancyGrid
 from homing.robot import Pose2
+from scipy import ndimage
 
 from homing.map_server import OCCUPIED, UNKNOWN
 
 SIGMA = 0.10  # [m] likelihood-field spread
+DISTANCE_MASK = 5  # OpenCV's distance-transform mask for end-point fields (5: exact along the axes, within 2 % elsewhere)
 WINDOW_XY = 0.20  # [m] half-width of the translational search window
 WINDOW_THETA = math.radians(8.0)  # [rad] half-width of the angular search window
 ANGLE_STEP = math.radians(0.5)  # [rad] at the finest correlative level
@@ -75,16 +77,31 @@ class ScanMatcher(Protocol):
 
 
 @dataclass
-class _Field:
-    """A likelihood field over a crop of the grid: (H, W) float32 values and its lower-left corner [m]."""
+class LikelihoodField:
+    """A likelihood field over a crop of a map: (H, W) float32 values and its lower-left corner [m].
+
+    Build one with :func:`likelihood_field` (from an occupancy grid) or
+    :func:`points_field` (from end points), then match many scans against it
+    with :meth:`CorrelativeMatcher.match_field`: the field and its max-pooled
+    levels are computed once.
+    """
 
     values: np.ndarray
     origin: tuple[float, float]
     resolution: float
-    known: np.ndarray | None = None  # (H, W) bool: the grid has observed the cell
+    known: np.ndarray | None = None  # (H, W) bool: the grid has observed the cell (None: every cell)
+
+    def __post_init__(self) -> None:
+        self._levels = [self.values]
+
+    def level(self, k: int) -> np.ndarray:
+        """The values max-pooled by 2^k (level 0: the field itself); each level is pooled once and kept."""
+        while len(self._levels) <= k:
+            self._levels.append(_pool(self._levels[-1]))
+        return self._levels[k]
 
 
-def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: float, sigma: float = SIGMA) -> _Field:
+def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: float, sigma: float = SIGMA) -> LikelihoodField:
     """The likelihood field of ``grid`` on the square crop of half-size ``half`` [m] around ``centre``."""
     res = grid.resolution
     lo = grid.world_to_cell(centre[0] - half, centre[1] - half)
@@ -93,23 +110,51 @@ def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: flo
     r0, c0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
     r1, c1 = min(int(hi[0]) + 1, h), min(int(hi[1]) + 1, w)
     if r1 <= r0 or c1 <= c0:
-        return _Field(np.zeros((1, 1), np.float32), grid.origin, res)
+        return LikelihoodField(np.zeros((1, 1), np.float32), grid.origin, res)
     occ = grid.data[r0:r1, c0:c1] == OCCUPIED
     # distanceTransform measures to the nearest zero pixel: zeros at walls.
     dist = cv2.distanceTransform((~occ).astype(np.uint8), cv2.DIST_L2, 5) * res
     values = np.exp(-0.5 * (np.minimum(dist, 10 * sigma) / sigma) ** 2).astype(np.float32)
     origin = (float(grid.origin[0] + c0 * res), float(grid.origin[1] + r0 * res))
     known = grid.data[r0:r1, c0:c1] != UNKNOWN
-    return _Field(values, origin, res, known)
+    return LikelihoodField(values, origin, res, known)
 
 
-def _pool(values: np.ndarray, factor: int) -> np.ndarray:
-    """Max-pool (H, W) by ``factor`` (padding with zeros): a coarse cell bounds every fine cell in it."""
+def points_field(points: np.ndarray, resolution: float, sigma: float = SIGMA, margin: float = 1.0,
+                 within: tuple[np.ndarray, np.ndarray] | None = None) -> LikelihoodField:
+    """The likelihood field of end points (N, 2) [m, map]: every point a wall, over their bounding box plus ``margin`` [m].
+
+    ``within`` (lower-left, upper-right corners [m]) crops the field to that
+    box: values inside it are those of all the points.
+    """
+    lo, hi = points.min(axis=0) - margin, points.max(axis=0) + margin
+    if within is not None:
+        lo, hi = np.maximum(lo, within[0]), np.minimum(hi, within[1])
+        # Walls within the field's reach of the box still shape it.
+        near = np.all((points >= lo - 10 * sigma) & (points <= hi + 10 * sigma), axis=1)
+        points = points[near]
+        lo, hi = lo - 10 * sigma, hi + 10 * sigma
+    shape = (max(int(math.ceil((hi[1] - lo[1]) / resolution)), 1), max(int(math.ceil((hi[0] - lo[0]) / resolution)), 1))
+    free = np.ones(shape, np.uint8)
+    r = ((points[:, 1] - lo[1]) / resolution).astype(np.int64)
+    c = ((points[:, 0] - lo[0]) / resolution).astype(np.int64)
+    ok = (r >= 0) & (r < shape[0]) & (c >= 0) & (c < shape[1])
+    free[r[ok], c[ok]] = 0
+    dist = cv2.distanceTransform(free, cv2.DIST_L2, DISTANCE_MASK) * resolution
+    values = np.exp(-0.5 * (np.minimum(dist, 10 * sigma) / sigma) ** 2).astype(np.float32)
+    return LikelihoodField(values, (float(lo[0]), float(lo[1])), resolution)
+
+
+def _pool(values: np.ndarray) -> np.ndarray:
+    """Max-pool (H, W) by 2 (padding with zeros): a coarse cell bounds the four fine cells in it."""
     h, w = values.shape
-    H, W = -(-h // factor), -(-w // factor)
-    padded = np.zeros((H * factor, W * factor), dtype=values.dtype)
-    padded[:h, :w] = values
-    return padded.reshape(H, factor, W, factor).max(axis=(1, 3))
+    if h % 2 or w % 2:
+        padded = np.zeros((h + h % 2, w + w % 2), dtype=values.dtype)
+        padded[:h, :w] = values
+        values = padded
+    # Four strided views: far faster than a reshape's max over two axes.
+    return np.maximum(np.maximum(values[0::2, 0::2], values[1::2, 0::2]),
+                      np.maximum(values[0::2, 1::2], values[1::2, 1::2]))
 
 
 class CorrelativeMatcher:
@@ -125,8 +170,10 @@ class CorrelativeMatcher:
         refine: bool = False,
         prior_xy: float = PRIOR_XY,
         prior_theta: float = PRIOR_THETA,
+        candidates: int = 1,
     ) -> None:
         self.window_xy = window_xy
+        self.candidates = candidates  # top-level poses refined (more: a wide window's peaks not lost to a coarse tie)
         self.prior_xy = prior_xy  # [m]
         self.prior_theta = prior_theta  # [rad]
         self.window_theta = window_theta
@@ -149,6 +196,13 @@ class CorrelativeMatcher:
             return MatchResult(prior, 0.0, False)
         reach = min(float(np.max(np.hypot(pts[:, 0], pts[:, 1]))), max_range)
         field = likelihood_field(grid, (prior.x, prior.y), reach + self.window_xy + 4 * self.sigma, self.sigma)
+        return self.match_field(field, pts, prior)
+
+    def match_field(self, field: LikelihoodField, points: np.ndarray, prior: Pose2) -> MatchResult:
+        """Best pose of ``points`` (M, 2) [m, base_link] on a prepared ``field`` near ``prior`` [map]."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        if len(pts) < MIN_POINTS:
+            return MatchResult(prior, 0.0, False)
         sub = pts[:: max(1, len(pts) // MAX_POINTS)]
         best = self._correlative(field, sub, prior)
         if self.refine:
@@ -157,31 +211,32 @@ class CorrelativeMatcher:
         return MatchResult(best, score, score >= self.min_score)
 
     # ------------------------------------------------------------ correlative
-    def _correlative(self, field: _Field, pts: np.ndarray, prior: Pose2) -> Pose2:
+    def _correlative(self, field: LikelihoodField, pts: np.ndarray, prior: Pose2) -> Pose2:
         res = field.resolution
-        levels = [(_pool(field.values, 2**k), res * 2**k) for k in range(self.levels + 1)]
-        # Top level: the whole window.
-        top_vals, top_res = levels[-1]
+        # Top level: the whole window, on the field max-pooled by 2^levels.
+        top_res = res * 2**self.levels
         n_xy = max(1, int(math.ceil(self.window_xy / top_res)))
         a_step = ANGLE_STEP * 2**self.levels
         n_a = max(1, int(math.ceil(self.window_theta / a_step)))
         offs = np.arange(-n_xy, n_xy + 1) * top_res
         thetas = prior.theta + np.arange(-n_a, n_a + 1) * a_step
-        x, y, th = _search(top_vals, top_res, field.origin, pts, prior.x + offs, prior.y + offs, thetas, prior,
-                           self.prior_xy, self.prior_theta)
-        # Finer levels: ±1 step around the best of the coarser level.
-        for k in range(self.levels - 1, -1, -1):
-            vals, lres = levels[k]
-            a_step = ANGLE_STEP * 2**k
-            step = np.array([-1.0, 0.0, 1.0])
-            x, y, th = _search(
-                vals, lres, field.origin, pts, x + step * lres, y + step * lres, th + step * a_step, prior,
-                self.prior_xy, self.prior_theta,
-            )
+        starts = _search(field.level(self.levels), top_res, field.origin, pts, prior.x + offs, prior.y + offs,
+                         thetas, prior, self.prior_xy, self.prior_theta, self.candidates)
+        # Finer levels: ±1 step around the best of the coarser level, from each of the top level's best poses.
+        found = []
+        for x, y, th, score in starts:
+            for k in range(self.levels - 1, -1, -1):
+                lres = res * 2**k
+                a_step = ANGLE_STEP * 2**k
+                step = np.array([-1.0, 0.0, 1.0])
+                x, y, th, score = _search(field.level(k), lres, field.origin, pts, x + step * lres, y + step * lres,
+                                          th + step * a_step, prior, self.prior_xy, self.prior_theta)[0]
+            found.append((score, x, y, th))
+        _, x, y, th = max(found)
         return Pose2(x, y, th)
 
     # ----------------------------------------------------------- Gauss–Newton
-    def _gauss_newton(self, field: _Field, pts: np.ndarray, start: Pose2, prior: Pose2) -> Pose2:
+    def _gauss_newton(self, field: LikelihoodField, pts: np.ndarray, start: Pose2, prior: Pose2) -> Pose2:
         xi = start.as_array().astype(float)
         # Anchor at the correlative optimum (itself tied to odometry where the scan is ambiguous): the
         # refinement is for sub-cell accuracy and must not slide along a corridor.
@@ -228,32 +283,63 @@ def _search(
     prior: Pose2,
     prior_xy: float,
     prior_theta: float,
-) -> tuple[float, float, float]:
-    """Score every pose of the grid xs × ys × thetas at once; return the best (x, y, θ).
+    keep: int = 1,
+) -> list[tuple[float, float, float, float]]:
+    """Score every pose of the grid xs × ys × thetas at once; return the ``keep`` best (x, y, θ, score), best first.
+
+    With ``keep`` > 1 the poses kept are local maxima: none is next to a
+    better one (one step in x, y or θ).
 
     A small penalty for straying from ``prior`` breaks ties (a featureless
     corridor scores the same all along it) in favour of odometry.
     """
     c, s = np.cos(thetas), np.sin(thetas)
-    # Rotated points (T, M), then shifted by every (x, y) offset: cells (T, X, Y, M).
+    # Rotated points (T, M). ``xs`` and ``ys`` step by one cell, so a point's cell under offset (i, j) is its
+    # cell under the first offset moved by (i, j) cells: one flat index per (angle, point), plus an offset table.
     rx = c[:, None] * pts[None, :, 0] - s[:, None] * pts[None, :, 1]
     ry = s[:, None] * pts[None, :, 0] + c[:, None] * pts[None, :, 1]
-    cols = np.floor((rx[:, None, None, :] + xs[None, :, None, None] - origin[0]) / res).astype(np.int64)
-    rows = np.floor((ry[:, None, None, :] + ys[None, None, :, None] - origin[1]) / res).astype(np.int64)
+    col0 = np.floor((rx + xs[0] - origin[0]) / res).astype(np.int64)
+    row0 = np.floor((ry + ys[0] - origin[1]) / res).astype(np.int64)
     h, w = values.shape
-    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-    vals = np.where(inside, values[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)], 0.0)
+    n_x, n_y = len(xs), len(ys)
+    flat = values.ravel()
+    offsets = np.arange(n_x)[:, None] + w * np.arange(n_y)[None, :]  # (X, Y) flat steps
+    # Points whose every offset stays on the field: gathered without bounds checks.
+    whole = (row0 >= 0) & (row0 + n_y <= h) & (col0 >= 0) & (col0 + n_x <= w)
+    base = np.where(whole, row0 * w + col0, 0)
+    vals = np.take(flat, base[:, None, None, :] + offsets[None, :, :, None], mode="clip")  # (T, X, Y, M)
+    sums = np.einsum("txym,tm->txy", vals, whole.astype(values.dtype))
+    # Points that straddle the field's edge (few): each offset checked; off the field scores 0.
+    edge_t, edge_m = np.nonzero(~whole & (row0 + n_y > 0) & (row0 < h) & (col0 + n_x > 0) & (col0 < w))
+    if len(edge_t):
+        cols = col0[edge_t, edge_m][:, None, None] + np.arange(n_x)[None, :, None]
+        rows = row0[edge_t, edge_m][:, None, None] + np.arange(n_y)[None, None, :]
+        ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        v = np.where(ok, values[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)], 0.0)
+        # np.nonzero lists edge_t in ascending order: sum each angle's run of points at once.
+        first = np.flatnonzero(np.r_[True, edge_t[1:] != edge_t[:-1]])
+        sums[edge_t[first]] += np.add.reduceat(v, first, axis=0)
     dth = np.arctan2(np.sin(thetas - prior.theta), np.cos(thetas - prior.theta))
     penalty = PRIOR_PENALTY * len(pts) * (
         ((xs[None, :, None] - prior.x) ** 2 + (ys[None, None, :] - prior.y) ** 2) / prior_xy**2
         + (dth[:, None, None] / prior_theta) ** 2
     )
-    scores = vals.sum(axis=-1) - penalty  # (T, X, Y)
-    t, i, j = np.unravel_index(int(np.argmax(scores)), scores.shape)
-    return float(xs[i]), float(ys[j]), float(thetas[t])
+    scores = sums - penalty  # (T, X, Y)
+    if keep == 1:
+        order = [int(np.argmax(scores))]
+    else:
+        # Local maxima over the 3 × 3 × 3 neighbourhood, best first.
+        peak = scores >= ndimage.maximum_filter(scores, size=3, mode="nearest")
+        flat_peaks = np.flatnonzero(peak)
+        order = flat_peaks[np.argsort(-scores.ravel()[flat_peaks], kind="stable")][:keep].tolist()
+    out = []
+    for f in order:
+        t, i, j = np.unravel_index(f, scores.shape)
+        out.append((float(xs[i]), float(ys[j]), float(thetas[t]), float(scores[t, i, j])))
+    return out
 
 
-def _bilinear(field: _Field, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _bilinear(field: LikelihoodField, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Field value and its gradient (per metre) at world points, bilinearly interpolated between cell centres."""
     res = field.resolution
     fx = (x - field.origin[0]) / res - 0.5
@@ -276,7 +362,7 @@ def _bilinear(field: _Field, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, 
     return np.where(ok, m, 0.0), np.where(ok, gx, 0.0), np.where(ok, gy, 0.0)
 
 
-def _known(field: _Field, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def _known(field: LikelihoodField, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """(M,) float 1.0 where the world point lies on an observed cell of the crop, else 0.0."""
     if field.known is None:
         return np.ones_like(x)
@@ -289,7 +375,7 @@ def _known(field: _Field, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out
 
 
-def _score(field: _Field, pts: np.ndarray, pose: Pose2) -> float:
+def _score(field: LikelihoodField, pts: np.ndarray, pose: Pose2) -> float:
     """Mean interpolated field value under the scan placed at ``pose``."""
     wpts = pose.transform_points(pts)
     m, _, _ = _bilinear(field, wpts[:, 0], wpts[:, 1])

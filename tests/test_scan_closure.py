@@ -78,6 +78,30 @@ def test_scans_of_different_places_do_not_match():
     assert scan_closure.match(ref, _scan(CORRIDOR, Pose2(0.0, 1.0, 0.0), rng).points(), Pose2()) is None
 
 
+def test_normals_are_across_the_walls_and_move_with_a_merged_scan():
+    rng = np.random.default_rng(3)
+    pose = Pose2(1.5, 1.0, 0.4)
+    pts = _scan(ROOM, pose, rng).points()
+    ref = scan_closure.reference(pts)
+    world = pose.transform_points(pts)
+    # Points on the room's outer walls (x = 0 or 6, y = 0 or 4 in the room) have normals along the other axis.
+    c, s = math.cos(pose.theta), math.sin(pose.theta)
+    n_world = ref.normals @ np.array([[c, s], [-s, c]])
+    on_x_wall = (np.minimum(abs(world[:, 0]), abs(world[:, 0] - 6.0)) < 0.02) & (world[:, 1] > 0.3) & (world[:, 1] < 3.7)
+    on_y_wall = (np.minimum(abs(world[:, 1]), abs(world[:, 1] - 4.0)) < 0.02) & (world[:, 0] > 0.3) & (world[:, 0] < 5.7)
+    assert on_x_wall.sum() > 50 and on_y_wall.sum() > 50
+    for across in (abs(n_world[on_x_wall & ref.on_line, 0]), abs(n_world[on_y_wall & ref.on_line, 1])):
+        assert np.median(across) > 0.995 and across.min() > 0.9  # 1 cm range noise tilts a few by degrees
+    # Merged at a pose, points and normals are moved and turned by it; the tree finds the moved points.
+    other = Pose2(-2.0, 0.5, -1.0)
+    merged = scan_closure.merge([ref, ref], [Pose2(), other])
+    assert np.allclose(merged.points[len(pts):], other.transform_points(pts))
+    c, s = math.cos(other.theta), math.sin(other.theta)
+    assert np.allclose(merged.normals[len(pts):], ref.normals @ np.array([[c, s], [-s, c]]))
+    assert np.array_equal(merged.on_line, np.concatenate([ref.on_line, ref.on_line]))
+    assert merged.tree.query(other.transform_points(pts[:5]))[0].max() < 1e-12
+
+
 def test_nearest_old_keyframe_skips_the_recent_ones():
     xy = np.array([[0.0, 0.0], [5.0, 0.0], [0.3, 0.0], [0.1, 0.0]])
     assert scan_closure.nearest_old(xy, np.array([0.0, 0.0]), 1.0, min_gap=1) == 0

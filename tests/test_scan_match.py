@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
 from homing.mapping.scan_match import CorrelativeMatcher
@@ -44,3 +45,62 @@ def test_scan_matching_beats_odometry_on_a_drifting_loop():
         errors[use] = float(np.mean(err))
     assert errors[False] > 2.0  # the run really drifts
     assert errors[True] < 0.25 * errors[False], errors
+
+
+def _brute_force(values: np.ndarray, res: float, origin: tuple[float, float], pts: np.ndarray, xs: np.ndarray,
+                 ys: np.ndarray, thetas: np.ndarray) -> np.ndarray:
+    """(T, X, Y) sums of the field under the points at every pose, one pose at a time (off the field: 0)."""
+    h, w = values.shape
+    out = np.zeros((len(thetas), len(xs), len(ys)))
+    for t, th in enumerate(thetas):
+        for i, x in enumerate(xs):
+            for j, y in enumerate(ys):
+                wpts = Pose2(x, y, th).transform_points(pts)
+                c = np.floor((wpts[:, 0] - origin[0]) / res).astype(int)
+                r = np.floor((wpts[:, 1] - origin[1]) / res).astype(int)
+                ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+                out[t, i, j] = values[r[ok], c[ok]].sum()
+    return out
+
+
+def test_search_scores_every_pose_as_one_pose_at_a_time_would() -> None:
+    from homing.mapping.scan_match import _search
+
+    for seed in range(12):
+        rng = np.random.default_rng(seed)
+        values = rng.random((30, 40)).astype(np.float32)
+        pts = rng.uniform(-4.0, 4.0, (50, 2))  # many land off the 8 m × 6 m field, or straddle its edge
+        prior = Pose2(*rng.uniform(-1, 1, 2), rng.uniform(-3, 3))
+        xs, ys = prior.x + np.arange(-3, 4) * 0.2, prior.y + np.arange(-3, 4) * 0.2
+        thetas = prior.theta + np.arange(-2, 3) * 0.05
+        sums = _brute_force(values, 0.2, (-4.0, -2.0), pts, xs, ys, thetas)
+        # Without the prior's pull (huge σ) the search returns the brute force's best poses, best first.
+        found = _search(values, 0.2, (-4.0, -2.0), pts, xs, ys, thetas, prior, 1e9, 1e9, keep=3)
+        t, i, j = np.unravel_index(int(np.argmax(sums)), sums.shape)
+        assert found[0][:3] == (xs[i], ys[j], thetas[t])
+        assert found[0][3] == pytest.approx(sums.max(), rel=1e-5)
+        scores = [f[3] for f in found]
+        assert scores == sorted(scores, reverse=True)
+        for x, y, th, score in found:  # each kept pose is a local maximum of the brute force's scores
+            t, i, j = int(np.argmin(abs(thetas - th))), int(np.argmin(abs(xs - x))), int(np.argmin(abs(ys - y)))
+            block = sums[max(t - 1, 0):t + 2, max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
+            assert score == pytest.approx(block.max(), rel=1e-5)
+
+
+def test_points_field_is_a_gaussian_of_the_distance_to_the_nearest_point() -> None:
+    from homing.mapping.scan_match import SIGMA, points_field
+
+    field = points_field(np.array([[0.0, 0.0], [3.0, 0.0]]), 0.05)
+    r0, c0 = np.argwhere(field.values == field.values.max())[0]  # the first point's cell (value 1)
+    assert field.values[r0, c0] == pytest.approx(1.0)
+    for k in range(1, 7):  # k cells away along a row and along a column: exp(−d²/2σ²), d = k·5 cm
+        expect = math.exp(-0.5 * (k * 0.05 / SIGMA) ** 2)
+        assert field.values[r0, c0 + k] == pytest.approx(expect, abs=1e-3)
+        assert field.values[r0 + k, c0] == pytest.approx(expect, abs=1e-3)
+    assert field.values[r0 + 3, c0 + 4] == pytest.approx(math.exp(-0.5 * (0.25 / SIGMA) ** 2), abs=0.02)  # 3-4-5
+    # Max-pooled levels bound every finer cell under them (the correlative search's pruning relies on it).
+    for k in (1, 2, 3):
+        coarse, fine = field.level(k), field.values
+        h, w = fine.shape
+        for r, c in [(0, 0), (h // 2, w // 3), (h - 1, w - 1)]:
+            assert coarse[r >> k, c >> k] >= fine[r, c]
