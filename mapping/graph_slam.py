@@ -7,26 +7,43 @@ RPLIDAR's 360°), robot unknown. Variables: keyframe poses in ``map`` (the
 - a prior on the first keyframe;
 - odometry between consecutive keyframes, with a generic wheel-odometry
   noise (``ODOM_SIGMA``: a floor plus shares of the distance and the turn);
-- the scan-matched motion between consecutive keyframes (the *front end*):
-  the new scan against a local map of the last ``local_keyframes`` scans,
-  first by the correlative search of :mod:`homing.mapping.scan_match`
-  (Olson 2009) on a grid of their end points around the odometry
-  prediction — wide enough for the 0.4 m and the degrees odometry loses
-  between sparse scans — then by the point-to-line ICP of
-  :mod:`homing.mapping.scan_closure` (Censi 2008), whose covariance frees a
-  corridor's unconstrained axis (there, odometry decides);
-- lidar loop closures: when the new keyframe comes within
-  ``closure_radius`` of a keyframe at least ``closure_gap`` metres of path
-  older, it is matched the same way against that keyframe's neighbourhood,
-  with a wider window (the drift of a loop), and the match becomes a
-  between factor with a Cauchy kernel, so that a false match is
-  down-weighted instead of bending the map.
+- the scan-matched motion between consecutive keyframes (the *front end*).
+  Every scan, keyframe or not, is fitted to the submap of the last
+  ``local_keyframes`` keyframes (:mod:`homing.mapping.submap`: correlative
+  search around the last fitted pose moved by the odometry since, wide
+  enough for the 0.4 m and the degrees odometry loses between sparse
+  scans, then point-to-line ICP); a scan becomes a keyframe when its
+  fitted pose is ``keyframe_distance`` or ``keyframe_angle`` from the last
+  keyframe's, and the fit's covariance (a corridor's axis freed: there
+  odometry decides) weighs its factor. Scans between keyframes keep their
+  fitted pose relative to their keyframe, so wheels that lose degrees in a
+  turn do not bend the trajectory between keyframes;
+- lidar loop closures, gated by the graph's own uncertainty. The
+  candidate is the nearest keyframe at least ``closure_gap`` metres of
+  path older (by the current estimate) that faced within ``FOV − 90°`` of
+  the new keyframe's heading (a 180° laser facing away sees other walls;
+  a 360° one, any). iSAM2's marginal covariance of the new keyframe says
+  how far the graph itself may have it from the truth; relative to the
+  older, better-anchored parts of the map it is an upper bound. (The
+  relative covariance of the pair from the joint marginal measured too
+  tight — the fits' covariances are optimistic — and missed loops that
+  freiburg-079 needs: 0.069 m against 0.043 m.) The candidate must lie
+  within ``closure_radius`` plus ``CLOSURE_SIGMAS`` σ,
+  and the new scan is fitted to the submap around it over a window of
+  ``CLOSURE_SIGMAS`` σ (between ``CLOSURE_WINDOW_MIN`` and
+  ``CLOSURE_WINDOW_MAX``), refining the best few peaks of the coarse
+  search. An accepted fit becomes a between factor with a Cauchy kernel,
+  so that a false match is down-weighted instead of bending the map. Right
+  after a closure the relative uncertainty is small, so the next closures
+  search small windows; a wide search (beyond ``CLOSURE_CONFIRM``) happens
+  only when a long loop comes home, and its fit counts only once a second
+  fit within ``CLOSURE_CONFIRM_WITHIN`` keyframes moves the map the same
+  way (two false matches seldom agree).
 
 Without closures (``closure_radius=0``) this is incremental scan matching:
 the "scan matching" baseline of Kümmerle et al. 2009. At the end,
 :meth:`GraphSlam.finish` re-optimises the whole graph in one batch
-(Levenberg–Marquardt from iSAM2's estimate). A scan between keyframes
-gets the pose of its keyframe moved by the odometry in between.
+(Levenberg–Marquardt from iSAM2's estimate).
 
 Not for: 3-D or tilted lasers, scans with fewer than ``scan_closure.MIN_PAIRS``
 end points within ``max_range``, or a kidnapped robot (no global search).
@@ -41,8 +58,7 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-from homing.mapping import scan_closure
-from homing.mapping.grid import L_MAX, OccupancyGrid
+from homing.mapping import submap
 from homing.mapping.landmark_slam import (
     X,
     from_gtsam,
@@ -50,30 +66,32 @@ from homing.mapping.landmark_slam import (
     rotate_covariance,
     to_gtsam,
 )
+from homing.mapping.scan_closure import Reference
 from homing.mapping.scan_match import CorrelativeMatcher
 from homing.robot.frames import wrap_angle
 from homing.robot.types import Pose2, Scan
 
-KEYFRAME_DISTANCE = 0.3  # [m] odometry travelled before a new keyframe
+KEYFRAME_DISTANCE = 0.3  # [m] fitted motion before a new keyframe
 KEYFRAME_ANGLE = math.radians(10.0)  # [rad]
 MAX_RANGE = 20.0  # [m] end points farther than this are not matched (a SICK's 80 m would cost, not help)
-LOCAL_KEYFRAMES = 8  # scans in the front end's local map
-MATCH_RESOLUTION = 0.05  # [m] cells of the end-point grid the correlative search runs on
+LOCAL_KEYFRAMES = 8  # keyframes in the front end's submap
 FRONT_WINDOW = (0.5, math.radians(12.0))  # [m, rad] half-widths of the front end's correlative search
-CLOSURE_WINDOW = (2.5, math.radians(30.0))  # [m, rad] the same for loop closures (the drift of a loop)
-CLOSURE_LEVELS = 3  # coarse levels of the closure search (its top level steps 40 cm and 4°)
+MIN_SCORE = 0.6  # mean likelihood-field value under an accepted front-end fit's end points
+FRONT_REFINE = False  # Gauss–Newton on the field after the correlative search (before ICP)
+CLOSURE_SIGMAS = 3.0  # closure search window and reach, in σ of the new keyframe's marginal
+CLOSURE_WINDOW_MIN = (0.5, math.radians(8.0))  # [m, rad] closure search half-widths at least
+CLOSURE_WINDOW_MAX = (4.0, math.radians(45.0))  # [m, rad] and at most
+CLOSURE_TOP_STEPS = 3  # the coarse search's steps each side at most (sets the number of levels)
+CLOSURE_CANDIDATES = 4  # coarse peaks refined in a closure search
 CLOSURE_SCORE = 0.7  # mean likelihood-field value under an accepted closure's end points
-CLOSURE_RADIUS = 4.0  # [m] an old keyframe this near (by the current estimate) is a closure candidate
+CLOSURE_CONFIRM = (1.0, math.radians(15.0))  # [m, rad] a closure searched wider waits for a second one to agree
+CLOSURE_CONFIRM_WITHIN = 3  # keyframes within which the second must come
+CLOSURE_AGREE = (0.3, math.radians(3.0))  # [m, rad] two closures agree if they move the map alike
+CLOSURE_RADIUS = 4.0  # [m] an old keyframe this near (plus the σ reach) is a closure candidate
 CLOSURE_GAP = 10.0  # [m] of path at least between a keyframe and the keyframes it may close a loop with
-CLOSURE_NEIGHBOURS = 4  # keyframes each side of the candidate in its local map
-MIN_SCORE = 0.6  # mean likelihood-field value under an accepted match's end points
-COVARIANCE_GATE = 0.25  # [m] pairs used for a match's covariance
-ICP_GATES = (0.3, 0.25, 0.2, 0.2)  # [m] a SICK's 1° beams land 17 cm apart on a wall 10 m away
-ICP_MAX_RMS = 0.05  # [m] point-to-line residual of an accepted refinement (real lasers: ≈ 1–2 cm)
-ICP_MIN_OVERLAP = 0.3  # share of the scan's points paired (a 180° scan a metre on sees new walls)
-ICP_MAX_SHIFT = (0.08, math.radians(1.5))  # [m, rad] the refinement may move the search's pose this far
+CLOSURE_NEIGHBOURS = 4  # keyframes each side of the candidate in its submap
 ODOM_SIGMA = (0.02, 0.10, math.radians(1.0), 0.10, math.radians(2.0))  # [m], [m/m], [rad], [rad/rad], [rad/m]
-MATCH_SIGMA_MIN = (0.01, math.radians(0.25))  # [m, rad] floors of a match's σ (the ICP's own is optimistic)
+MATCH_SIGMA_MIN = (0.01, math.radians(0.25))  # [m, rad] floors of a fit's σ (the ICP's own is optimistic)
 FIRST_SIGMA = (1e-3, 1e-3, 1e-3)  # [m, m, rad]
 CAUCHY_K = 2.3849
 
@@ -101,23 +119,42 @@ class Keyframe:
     points: np.ndarray
     scan: Scan
     path: float  # [m] odometry path from the first keyframe
+    reference: Reference  # its points with their own scan's normals, for ICP
 
 
 @dataclass
 class _ScanPlace:
-    """Where a scan was taken: its stamp, the keyframe before it and the odometry from that keyframe."""
+    """Where a scan was taken: its stamp, the keyframe before it and its pose relative to that keyframe."""
 
     stamp: float
     keyframe: int
     offset: Pose2
 
 
+@dataclass(frozen=True)
+class _Closure:
+    """A loop-closure fit: keyframe k seen from keyframe j (``rel``), and where it puts k in the map."""
+
+    j: int
+    k: int
+    rel: Pose2
+    fit: submap.Fit
+    estimate: Pose2  # k's estimate [map] before the fit
+
+
+def _agree(a: _Closure, b: _Closure) -> bool:
+    """Whether closure ``a``'s correction of the map also puts ``b``'s keyframe where ``b``'s fit does."""
+    moved = a.fit.pose.compose(a.estimate.inverse()).compose(b.estimate)
+    d = moved.between(b.fit.pose)
+    return math.hypot(d.x, d.y) <= CLOSURE_AGREE[0] and abs(d.theta) <= CLOSURE_AGREE[1]
+
+
 @dataclass
 class Stats:
     """Counters and timings of a run."""
 
-    matches: int = 0
-    match_failures: int = 0
+    matches: int = 0  # scans fitted to the front end's submap
+    match_failures: int = 0  # scans placed by odometry alone
     closures: int = 0
     closure_attempts: int = 0
     ms: list[float] = field(default_factory=list)  # wall time per scan [ms]
@@ -131,16 +168,25 @@ def odometry_sigmas(delta: Pose2, path: float, turn: float) -> np.ndarray:
     return np.array([s_xy, s_xy, s_th])
 
 
-def end_points_grid(points: np.ndarray, resolution: float = MATCH_RESOLUTION) -> OccupancyGrid:
-    """A grid whose only occupied cells hold ``points`` (N, 2) [m, map]: what the correlative search matches to."""
-    lo = points.min(axis=0) - 1.0
-    hi = points.max(axis=0) + 1.0
-    shape = (int(math.ceil((hi[1] - lo[1]) / resolution)), int(math.ceil((hi[0] - lo[0]) / resolution)))
-    grid = OccupancyGrid(resolution, (float(lo[0]), float(lo[1])), shape, grow=False)
-    r, c = grid.world_to_cell(points[:, 0], points[:, 1])
-    grid.logodds[r, c] = L_MAX
-    grid.version += 1
-    return grid
+def _max_turn(scan: Scan) -> float:
+    """[rad] the largest heading difference at which two scans of this laser still share walls: FOV − 90°."""
+    fov = abs(scan.angle_increment) * len(scan.ranges)
+    return math.pi if fov >= 2 * math.pi - 1e-6 else max(fov - math.pi / 2, 0.0)
+
+
+def closure_window(covariance: np.ndarray) -> tuple[float, float]:
+    """Closure search half-widths ([m], [rad]) from a keyframe's (3, 3) marginal covariance (``CLOSURE_SIGMAS`` σ)."""
+    s_xy = math.sqrt(max(float(np.linalg.eigvalsh(covariance[:2, :2])[-1]), 0.0))
+    s_th = math.sqrt(max(float(covariance[2, 2]), 0.0))
+    return (float(np.clip(CLOSURE_SIGMAS * s_xy, CLOSURE_WINDOW_MIN[0], CLOSURE_WINDOW_MAX[0])),
+            float(np.clip(CLOSURE_SIGMAS * s_th, CLOSURE_WINDOW_MIN[1], CLOSURE_WINDOW_MAX[1])))
+
+
+def closure_matcher(window: tuple[float, float]) -> CorrelativeMatcher:
+    """A correlative matcher for a closure window ([m], [rad]): levels enough for ≤ ``CLOSURE_TOP_STEPS`` coarse steps."""
+    levels = int(np.clip(math.ceil(math.log2(max(window[0] / (CLOSURE_TOP_STEPS * submap.RESOLUTION), 1.0))), 1, 5))
+    return CorrelativeMatcher(window_xy=window[0], window_theta=window[1], levels=levels, min_score=0.0,
+                              prior_xy=3.0, prior_theta=math.radians(45.0), candidates=CLOSURE_CANDIDATES)
 
 
 class GraphSlam:
@@ -161,17 +207,18 @@ class GraphSlam:
         self.places: list[_ScanPlace] = []
         self.stats = Stats()
         self._est: list[Pose2] = []  # current estimate of every keyframe [map]
-        self._xy = np.zeros((0, 2))
+        self._xy = np.zeros((0, 2))  # keyframes' estimated positions [m, map]
+        self._theta = np.zeros(0)  # and headings [rad]
         self._history: deque[tuple[float, Pose2]] = deque(maxlen=256)
         self._last_scan = -math.inf
+        self._last_odom = Pose2()  # odometry at the last scan
         self._path = 0.0
         self._turn = 0.0
         self._front = CorrelativeMatcher(window_xy=FRONT_WINDOW[0], window_theta=FRONT_WINDOW[1], min_score=0.0,
-                                         refine=True)
-        self._wide = CorrelativeMatcher(window_xy=CLOSURE_WINDOW[0], window_theta=CLOSURE_WINDOW[1], min_score=0.0,
-                                        levels=CLOSURE_LEVELS, prior_xy=3.0, prior_theta=math.radians(45.0),
-                                        refine=True)
+                                         refine=FRONT_REFINE)
+        self._submap: submap.Submap | None = None  # the front end's, built on first use after a change
         self._final: list[Pose2] | None = None
+        self._pending: _Closure | None = None  # a wide closure awaiting a second to agree
 
     # -- input -------------------------------------------------------------
 
@@ -198,46 +245,42 @@ class GraphSlam:
         if not self.keyframes:
             self._start(scan, odom, pts)
             return True
+        # The last scan's pose moved by the wheels since: the front end's prior.
+        place = self.places[-1]
+        predicted = self._est[place.keyframe].compose(place.offset).compose(self._last_odom.between(odom))
+        self._last_odom = odom
+        fitted = self._fit_front(pts, predicted) if self.cfg.scan_matching else None
+        pose = fitted.pose if fitted is not None else predicted
         last = self.keyframes[-1]
-        delta = last.odom.between(odom)
-        if math.hypot(delta.x, delta.y) < self.cfg.keyframe_distance and abs(delta.theta) < self.cfg.keyframe_angle:
-            self.places.append(_ScanPlace(scan.stamp, last.index, delta))
+        rel = self._est[last.index].between(pose)
+        if math.hypot(rel.x, rel.y) < self.cfg.keyframe_distance and abs(rel.theta) < self.cfg.keyframe_angle:
+            self.places.append(_ScanPlace(scan.stamp, last.index, rel))
             return False
-        kf = Keyframe(len(self.keyframes), scan.stamp, odom, pts, scan, last.path + self._path)
+        kf = Keyframe(len(self.keyframes), scan.stamp, odom, pts, scan, last.path + self._path,
+                      submap.scan_reference(pts))
         graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+        delta = last.odom.between(odom)
         sig = odometry_sigmas(delta, self._path, self._turn)
         self._path = self._turn = 0.0
         graph.add(gtsam.BetweenFactorPose2(X(last.index), X(kf.index), to_gtsam(delta),
                                            gtsam.noiseModel.Diagonal.Sigmas(sig)))
-        predicted = self._est[last.index].compose(delta)
-        guess = predicted
-        if self.cfg.scan_matching:
-            matched = self._match(pts, predicted, range(max(0, kf.index - self.cfg.local_keyframes), kf.index),
-                                  self._front)
-            if matched is not None:
-                pose, cov = matched
-                guess = pose
-                rel = self._est[last.index].between(pose)
-                graph.add(gtsam.BetweenFactorPose2(X(last.index), X(kf.index), to_gtsam(rel), self._noise(cov, pose)))
-                self.stats.matches += 1
-            else:
-                self.stats.match_failures += 1
-        values.insert(X(kf.index), to_gtsam(guess))
+        if fitted is not None:
+            graph.add(gtsam.BetweenFactorPose2(X(last.index), X(kf.index), to_gtsam(rel),
+                                               self._noise(fitted.covariance, pose)))
+        values.insert(X(kf.index), to_gtsam(pose))
         self.keyframes.append(kf)
         self.places.append(_ScanPlace(scan.stamp, kf.index, Pose2()))
-        self._est.append(guess)
-        self._xy = np.vstack([self._xy, [guess.x, guess.y]])
-        closed = self._close_loop(kf, graph)
         self.isam.update(graph, values)
-        if closed:
+        self._est.append(from_gtsam(self.isam.calculateEstimatePose2(X(kf.index))))
+        self._xy = np.vstack([self._xy, [self._est[-1].x, self._est[-1].y]])
+        self._theta = np.append(self._theta, self._est[-1].theta)
+        self._submap = None
+        if self._close_loop(kf):
             self._refresh()
-        else:
-            self._est[kf.index] = from_gtsam(self.isam.calculateEstimatePose2(X(kf.index)))
-            self._xy[kf.index] = (self._est[kf.index].x, self._est[kf.index].y)
         return True
 
     def _start(self, scan: Scan, odom: Pose2, pts: np.ndarray) -> None:
-        kf = Keyframe(0, scan.stamp, odom, pts, scan, 0.0)
+        kf = Keyframe(0, scan.stamp, odom, pts, scan, 0.0, submap.scan_reference(pts))
         self.keyframes.append(kf)
         self.places.append(_ScanPlace(scan.stamp, 0, Pose2()))
         graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
@@ -246,39 +289,31 @@ class GraphSlam:
         self.isam.update(graph, values)
         self._est.append(odom)
         self._xy = np.array([[odom.x, odom.y]])
+        self._theta = np.array([odom.theta])
+        self._last_odom = odom
         self._path = self._turn = 0.0
 
     # -- matching ----------------------------------------------------------
 
-    def _local_map(self, indices: range) -> np.ndarray:
-        return np.vstack([self._est[i].transform_points(self.keyframes[i].points) for i in indices])
+    def _submap_of(self, indices: range, focus: int | None = None) -> submap.Submap | None:
+        """The keyframes ``indices`` joined at their current estimates (``focus``: see :func:`submap.build`)."""
+        return submap.build([self.keyframes[i].reference for i in indices], [self._est[i] for i in indices],
+                            focus=None if focus is None else focus - indices.start)
 
-    def _match(self, pts: np.ndarray, prior: Pose2, indices: range, matcher: CorrelativeMatcher,
-               min_score: float = MIN_SCORE) -> tuple[Pose2, np.ndarray] | None:
-        """The scan's pose in ``map`` against the local map of keyframes ``indices``, and its covariance; or None."""
-        if len(pts) < scan_closure.MIN_PAIRS or len(indices) == 0:
-            return None
-        local = self._local_map(indices)
-        found = matcher.match(end_points_grid(local), pts, prior, self.cfg.max_range)
-        if found.score < min_score:
-            return None
-        # The correlative search says where the scan fits, not how well each direction is pinned: the
-        # point-to-line Jacobian there does (a corridor's axis gets a free σ, and odometry decides along it).
-        ref = scan_closure.reference(local)
-        pose = found.pose
-        # Point-to-line ICP from there, for the sub-cell fit the search's 5 cm / 0.5° steps cannot give; kept only
-        # if it stays in the search's cell.
-        icp = scan_closure.match(ref, pts, pose, max_rms=ICP_MAX_RMS, gates=ICP_GATES, min_overlap=ICP_MIN_OVERLAP)
-        if icp is not None and icp.pose.distance_to(pose) <= ICP_MAX_SHIFT[0] and \
-                abs(wrap_angle(icp.pose.theta - pose.theta)) <= ICP_MAX_SHIFT[1]:
-            pose = icp.pose
-        cov = scan_closure.covariance_at(ref, pts, pose, COVARIANCE_GATE)
-        if cov is None:
-            return None
-        return pose, cov
+    def _fit_front(self, pts: np.ndarray, prior: Pose2) -> submap.Fit | None:
+        """The scan fitted to the last keyframes' submap around ``prior``, or None (then odometry places it)."""
+        if self._submap is None:
+            n = len(self.keyframes)
+            self._submap = self._submap_of(range(max(0, n - self.cfg.local_keyframes), n), focus=n - 1)
+        found = None if self._submap is None else submap.fit(self._submap, pts, prior, self._front, MIN_SCORE)
+        if found is None:
+            self.stats.match_failures += 1
+        else:
+            self.stats.matches += 1
+        return found
 
     def _noise(self, cov: np.ndarray, pose: Pose2, robust: bool = False) -> gtsam.noiseModel.Base:
-        # The match's covariance is of the pose in map axes; the factor's error lives in the pose's own frame.
+        # The fit's covariance is of the pose in map axes; the factor's error lives in the pose's own frame.
         c = rotate_covariance(cov, pose.theta)
         c = c + np.diag([MATCH_SIGMA_MIN[0] ** 2, MATCH_SIGMA_MIN[0] ** 2, MATCH_SIGMA_MIN[1] ** 2])
         gauss = gtsam.noiseModel.Gaussian.Covariance(c)
@@ -286,35 +321,60 @@ class GraphSlam:
             return gauss
         return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(CAUCHY_K), gauss)
 
-    def _close_loop(self, kf: Keyframe, graph: gtsam.NonlinearFactorGraph) -> bool:
-        """Match the new keyframe to the nearest old one within reach; add the factor to ``graph`` if it holds."""
+    def _close_loop(self, kf: Keyframe) -> bool:
+        """Fit the new keyframe to the submap around the nearest old one within reach; add the factor if it holds."""
         if self.cfg.closure_radius <= 0 or not self.cfg.scan_matching:
             return False
-        old = np.array([k.path <= kf.path - self.cfg.closure_gap for k in self.keyframes[:-1]], dtype=bool)
+        paths = np.array([k.path for k in self.keyframes])
+        old = paths[:-1] <= kf.path - self.cfg.closure_gap
         if not old.any():
             return False
         here = self._est[kf.index]
         d = np.hypot(self._xy[:-1, 0] - here.x, self._xy[:-1, 1] - here.y)
-        d[~old] = np.inf
+        # A laser that sees less than all round sees other walls when it faces away from where it was.
+        turn = np.abs(np.angle(np.exp(1j * (self._theta[:-1] - here.theta))))
+        d[~old | (turn > _max_turn(kf.scan))] = np.inf
         j = int(np.argmin(d))
-        if not d[j] <= self.cfg.closure_radius:
+        if not d[j] <= self.cfg.closure_radius + CLOSURE_WINDOW_MAX[0]:
+            return False
+        # How far the graph itself says the new keyframe may be from where it has it.
+        window = closure_window(self.isam.marginalCovariance(X(kf.index)))
+        if not d[j] <= self.cfg.closure_radius + window[0]:
             return False
         self.stats.closure_attempts += 1
-        lo, hi = max(0, j - CLOSURE_NEIGHBOURS), min(len(self.keyframes) - 1, j + CLOSURE_NEIGHBOURS + 1)
-        hi = min(hi, int(np.searchsorted([k.path for k in self.keyframes], kf.path - self.cfg.closure_gap, "right")))
-        matched = self._match(kf.points, here, range(lo, max(hi, j + 1)), self._wide, CLOSURE_SCORE)
-        if matched is None:
+        lo = max(0, j - CLOSURE_NEIGHBOURS)
+        hi = min(j + CLOSURE_NEIGHBOURS + 1, int(np.searchsorted(paths, kf.path - self.cfg.closure_gap, "right")))
+        around = self._submap_of(range(lo, max(hi, j + 1)))
+        found = None if around is None else submap.fit(around, kf.points, here, closure_matcher(window), CLOSURE_SCORE)
+        if found is None:
             return False
-        pose, cov = matched
-        rel = self._est[j].between(pose)
-        graph.add(gtsam.BetweenFactorPose2(X(j), X(kf.index), to_gtsam(rel), self._noise(cov, pose, robust=True)))
-        self.stats.closures += 1
+        rel = self._est[j].between(found.pose)
+        closure = _Closure(j, kf.index, rel, found, here)
+        if window[0] > CLOSURE_CONFIRM[0] or window[1] > CLOSURE_CONFIRM[1]:
+            # A wide search may find a false match as well as the true one: wait for the next keyframes' fit
+            # to move the map the same way (two false matches seldom agree).
+            pending, self._pending = self._pending, closure
+            if pending is None or kf.index - pending.k > CLOSURE_CONFIRM_WITHIN or \
+                    not _agree(pending, closure):
+                return False
+            self._pending = None
+            self._add_closure(pending)
+        self._add_closure(closure)
         return True
+
+    def _add_closure(self, c: _Closure) -> None:
+        graph = gtsam.NonlinearFactorGraph()
+        graph.add(gtsam.BetweenFactorPose2(X(c.j), X(c.k), to_gtsam(c.rel),
+                                           self._noise(c.fit.covariance, c.fit.pose, robust=True)))
+        self.isam.update(graph, gtsam.Values())
+        self.stats.closures += 1
 
     def _refresh(self) -> None:
         est = self.isam.calculateEstimate()
         self._est = [from_gtsam(est.atPose2(X(k.index))) for k in self.keyframes]
         self._xy = np.array([(p.x, p.y) for p in self._est])
+        self._theta = np.array([p.theta for p in self._est])
+        self._submap = None
 
     # -- output ------------------------------------------------------------
 
@@ -338,6 +398,6 @@ class GraphSlam:
         return list(self._est)
 
     def trajectory(self) -> tuple[list[float], list[Pose2]]:
-        """Every scan's stamp [s] and pose in ``map``: its keyframe's pose moved by the odometry since."""
+        """Every scan's stamp [s] and pose in ``map``: its keyframe's pose moved by the scan's fitted offset."""
         kf = self.keyframe_poses()
         return [p.stamp for p in self.places], [kf[p.keyframe].compose(p.offset) for p in self.places]
