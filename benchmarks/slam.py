@@ -31,12 +31,18 @@ detector, headings from the wall). ``synthetic`` times iSAM2 alone on a
 
 Worlds: ``--world`` (default ``lab``) and each ``--map-world`` map_server map
 (default ``../shared/worlds/loop.yaml`` when run from the project root),
-which gets a world file written in a temporary folder: the dock auto-placed,
-the robot started docked and ``--tags`` tags added.
+for which each run writes a world file in a temporary folder: the dock
+auto-placed, the robot started docked and ``--tags`` tags added.
+
+Runs go to ``--engine`` (:mod:`homing.benchmarks.engine`; ``local`` by
+default, ``pool`` with ``--workers N``, ``ray [--address ADDR]``): one job
+per world, scenario and seed, the same JSON for the same seeds on every
+engine but the timings (``wall_s``, ``isam_update_ms_*``), a failed run
+listed with its seed under ``failed``.
 
 Scoring (alignments, errors, the collector): :mod:`homing.benchmarks.slam_score`.
 
-Run: ``homing bench slam [--seeds N] [--scenarios loop,cycles] [--json PATH]``.
+Run: ``homing bench slam [--seeds N] [--scenarios loop,cycles] [--engine pool --workers 2] [--json PATH]``.
 """
 
 from __future__ import annotations
@@ -48,7 +54,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from homing.benchmarks.common import print_table, write_json
+from homing.benchmarks.common import print_table, progress_bar, write_json
+from homing.benchmarks.engine import add_engine_arguments
 from homing.benchmarks.slam_score import Collector
 from homing.mapping.landmark_slam import LandmarkSlam, SlamConfig
 from homing.mapping.landmark_synthetic import synthetic_loop
@@ -59,7 +66,8 @@ DT = 0.1  # [s] control period of the driver
 VIEW_DISTANCE = 1.2  # [m] in front of a tag where the loop driver stops to look at it
 DRIVE_V = 0.3  # [m/s]
 ANCHOR_EVERY = 3  # the tour's every n-th tag visit is to the dock's tag (the anchor all tags are aligned on)
-OPTIONS = {"scan_matched": False}  # set from the command line in run()
+OPTIONS = {"scan_matched": False}  # set per run by run_one (in the worker that runs it)
+SCENARIOS = ("loop", "explore", "cycles", "synthetic")
 THESIS = {"teleoperated": (8.44, 7.04), "autonomous": (57.58, 72.96), "multiple": (7.02, 8.56)}
 
 
@@ -357,66 +365,89 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scan-matched", action="store_true",
                         help="also give GTSAM the grid's scan-matched motion between keyframes (robust factor)")
     parser.add_argument("--poses", type=int, default=10_000, help="keyframes in the synthetic iSAM2 timing graph")
+    add_engine_arguments(parser, workers=1)
 
 
-def _worlds(args: argparse.Namespace, folder: Path) -> list[tuple[str, Any]]:
-    """(label, world spec) of every world to run: the named ones, then the tagged map_server maps."""
-    out: list[tuple[str, Any]] = [(w, w) for w in (args.world or ["lab"])]
+def _worlds(args: argparse.Namespace) -> list[tuple[str, str, int]]:
+    """(label, world spec, tags to add) of every world to run: the named ones, then the map_server maps.
+
+    A map_server map travels as its path and tag count: each run writes its
+    own tagged world file (:func:`tagged_world`), so a worker on another
+    machine needs only the map, at the same path.
+    """
+    out: list[tuple[str, str, int]] = [(w, w, 0) for w in (args.world or ["lab"])]
     maps = args.map_world
     if maps is None:
         default = Path("../shared/worlds/loop.yaml")
         maps = [str(default)] if default.is_file() else []
     for m in maps:
-        out.append((Path(m).stem + "+tags", tagged_world(Path(m), folder, args.tags)))
+        out.append((Path(m).stem + "+tags", str(Path(m).resolve()), args.tags))
     return out
 
 
-def _one(scen: str, world: Any, seed: int, args: argparse.Namespace) -> dict[str, float]:
-    if scen == "loop":
-        return scenario_loop(world, seed)
-    if scen == "explore":
-        return scenario_explore(world, seed, args.minutes, tour=not args.no_tour)
-    if scen == "cycles":
-        return scenario_cycles(world, seed, args.cycles)
-    raise KeyError(f"unknown scenario '{scen}'")
-
-
-def run(args: argparse.Namespace) -> int:
+def run_one(label: str, spec: str, tags: int, scen: str, seed: int, minutes: float, tour: bool, cycles: int,
+            scan_matched: bool) -> dict[str, float]:
+    """One scenario run, in whichever process the engine chose (all its options passed in, none global)."""
     import tempfile
 
     from homing.sim import load_world
 
+    OPTIONS["scan_matched"] = scan_matched
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="homing-bench-slam-") as tmp:
+        world = load_world(tagged_world(Path(spec), Path(tmp), tags) if tags else spec)
+        if scen == "loop":
+            r = scenario_loop(world, seed)
+        elif scen == "explore":
+            r = scenario_explore(world, seed, minutes, tour=tour)
+        elif scen == "cycles":
+            r = scenario_cycles(world, seed, cycles)
+        else:
+            raise KeyError(f"unknown scenario '{scen}'")
+    r["wall_s"] = time.perf_counter() - t0
+    return r
+
+
+def run(args: argparse.Namespace) -> int:
+    from homing.benchmarks.engine import engine_from_args, failures_table, run_jobs
+
+    from homing.errors import UserError
+
     scenarios = [s.strip() for s in args.scenarios.split(",") if s.strip()]
-    OPTIONS["scan_matched"] = bool(args.scan_matched)
+    unknown = [s for s in scenarios if s not in SCENARIOS]
+    if unknown:
+        raise UserError(f"unknown scenario {', '.join(unknown)} (known: {', '.join(SCENARIOS)})")
+    if args.seeds < 1:
+        raise UserError(f"--seeds must be ≥ 1, not {args.seeds}")
+    engine = engine_from_args(args)
+    worlds = _worlds(args) if any(s != "synthetic" for s in scenarios) else []
+    for _, spec, _ in worlds:
+        from homing.sim.world import resolve
+
+        resolve(spec)  # a missing world is the user's mistake: say so before starting workers
     out: dict[str, Any] = {"scan_matched": bool(args.scan_matched)}
     rows: list[list[Any]] = []
-    with tempfile.TemporaryDirectory(prefix="homing-bench-slam-") as tmp:
-        for label, spec in _worlds(args, Path(tmp)) if any(s != "synthetic" for s in scenarios) else []:
-            world = load_world(spec)
-            for scen in (s for s in scenarios if s != "synthetic"):
-                results, skipped = [], ""
-                for seed in range(args.seeds):
-                    try:
-                        t0 = time.perf_counter()
-                        r = _one(scen, world, seed, args)
-                        r["wall_s"] = time.perf_counter() - t0
-                        results.append(r)
-                    except (ImportError, FileNotFoundError, KeyError) as err:
-                        skipped = f"{type(err).__name__}: {err}"
-                        break
-                key = f"{label}/{scen}"
-                if not results:
-                    out[key] = {"skipped": skipped}
-                    rows.append([key, "skipped: " + skipped[:60]] + [""] * 8)
-                    continue
-                agg = {k: float(np.nanmean([r[k] for r in results])) for k in results[0]}
-                agg["seeds"] = float(len(results))
-                enough = agg["tags_seen"] >= 3 and agg["grid_total_m"] > 0  # a ratio of one or two tags means nothing
-                agg["gtsam_over_grid"] = agg["gtsam_total_m"] / agg["grid_total_m"] if enough else math.nan
-                out[key] = agg
-                rows.append([key, agg["gtsam_total_m"], agg["grid_total_m"], agg["odom_total_m"], agg["gtsam_mean_m"],
-                             agg["gtsam_fit_total_m"], agg["grid_fit_total_m"], agg["ate_m"],
-                             agg["isam_update_ms_median"], f"{int(agg['tags_seen'])}/{int(agg['tags_total'])}"])
+    jobs = [(label, spec, tags, scen, seed, args.minutes, not args.no_tour, args.cycles, bool(args.scan_matched))
+            for label, spec, tags in worlds for scen in scenarios if scen != "synthetic" for seed in range(args.seeds)]
+    with progress_bar("slam", len(jobs)) as advance:
+        outcomes = run_jobs(run_one, jobs, engine,
+                            lambda o: advance(f"{o.job[0]}/{o.job[3]} seed {o.job[4]}" + ("" if o.ok else ": failed")))
+    for label, _, _ in worlds:
+        for scen in (s for s in scenarios if s != "synthetic"):
+            key = f"{label}/{scen}"
+            results = [o.result for o in outcomes if o.ok and o.job[0] == label and o.job[3] == scen]
+            if not results:
+                out[key] = {"failed": True}
+                rows.append([key, "failed (see below)"] + [""] * 8)
+                continue
+            agg = {k: float(np.nanmean([r[k] for r in results])) for k in results[0]}
+            agg["seeds"] = float(len(results))
+            enough = agg["tags_seen"] >= 3 and agg["grid_total_m"] > 0  # a ratio of one or two tags means nothing
+            agg["gtsam_over_grid"] = agg["gtsam_total_m"] / agg["grid_total_m"] if enough else math.nan
+            out[key] = agg
+            rows.append([key, agg["gtsam_total_m"], agg["grid_total_m"], agg["odom_total_m"], agg["gtsam_mean_m"],
+                         agg["gtsam_fit_total_m"], agg["grid_fit_total_m"], agg["ate_m"],
+                         agg["isam_update_ms_median"], f"{int(agg['tags_seen'])}/{int(agg['tags_total'])}"])
     if "synthetic" in scenarios:
         syn = synthetic_timing(args.poses)
         out["synthetic"] = syn
@@ -427,6 +458,9 @@ def run(args: argparse.Namespace) -> int:
          "GTSAM total (fit) m", "grid total (fit) m", "ATE m", "iSAM2 ms median", "tags"],
         rows,
     )
+    out["failed"] = failures_table(outcomes)
+    for f in out["failed"]:
+        print(f"failed: {f['job'][0]}/{f['job'][3]} seed {f['job'][4]}: {f['error']}")
     out["thesis_table_5_3"] = {k: {"gtsam_total_m": v[0], "grid_total_m": v[1]} for k, v in THESIS.items()}
     write_json(args.json, out)
     return 0

@@ -142,3 +142,27 @@ def test_ray_and_the_pool_write_identical_slam_logs_json(tmp_path: Path) -> None
         outs[engine] = data
     assert outs["pool"] == outs["ray"]
     assert outs["pool"]["raw"]["odometry"]["relations"] == 2 and outs["pool"]["failed"] == []
+
+
+@pytest.mark.slow
+def test_bench_slam_gives_the_same_figures_in_a_worker_process_and_names_a_failed_seed(tmp_path: Path) -> None:
+    """``homing bench slam`` locally and on the process pool: every option reaches the worker (--scan-matched)."""
+    bad = tmp_path / "bad.yaml"  # a map whose image is missing: each of its runs fails in its worker
+    bad.write_text("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\n"
+                   "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    outs = {}
+    for engine in ("local", "pool"):
+        js = tmp_path / f"{engine}.json"
+        assert main(["bench", "slam", "--scenarios", "loop", "--seeds", "1", "--world", "lab", "--map-world", str(bad),
+                     "--scan-matched", "--engine", engine, "--workers", "2" if engine == "pool" else "1",
+                     "--json", str(js)]) == 0
+        data = json.loads(js.read_text())
+        for timing in ("wall_s", "isam_update_ms_median"):
+            data["lab/loop"].pop(timing)
+        for f in data["failed"]:
+            f["error"] = f["error"].split(":")[0]  # the temporary folder's name differs
+        outs[engine] = data
+    assert outs["local"] == outs["pool"]
+    assert outs["pool"]["scan_matched"] is True and outs["pool"]["lab/loop"]["tags_seen"] >= 3
+    assert outs["pool"]["bad+tags/loop"] == {"failed": True}
+    assert [f["job"][4] for f in outs["pool"]["failed"]] == [0]  # the failed run's seed

@@ -27,6 +27,8 @@ from pathlib import Path
 from typing import Any
 
 OFFLINE = ("odometry", "scan_matching", "grid", "graph")
+PICTURE_INCHES = 9.0  # the map picture's longer side
+PICTURE_DPI = 110
 
 
 def _defaults() -> dict[str, Any]:
@@ -298,9 +300,18 @@ def plot_map(log: Any, result: Any, out: Path) -> None:
     h, w = g.shape
     img = np.full((h, w), 0.75)
     img[g.data == FREE] = 1.0
-    img[g.data == OCCUPIED] = 0.0
+    # A wall one cell thick is thinner than a pixel of the picture: thicken walls to ~2 pixels, for display only.
+    cells_per_pixel = max(w, h) / (PICTURE_INCHES * PICTURE_DPI)
+    walls = (g.data == OCCUPIED).astype(np.uint8)
+    k = int(math.ceil(2 * cells_per_pixel))
+    if k > 1:
+        import cv2
+
+        walls = cv2.dilate(walls, np.ones((k, k), np.uint8))
+    img[walls > 0] = 0.0
     extent = (g.origin[0], g.origin[0] + w * g.resolution, g.origin[1], g.origin[1] + h * g.resolution)
-    fig, ax = plt.subplots(figsize=(9, 9 * h / max(w, 1) if w else 9))
+    side = PICTURE_INCHES
+    fig, ax = plt.subplots(figsize=(side, side * h / w) if w >= h else (side * w / max(h, 1), side))
     ax.imshow(img, cmap="gray", vmin=0, vmax=1, origin="lower", extent=extent, interpolation="nearest")
     est = np.array([p.as_array() for p in result.poses]).reshape(-1, 3)
     ref = log.reference()
@@ -317,6 +328,6 @@ def plot_map(log: Any, result: Any, out: Path) -> None:
     ax.set_ylabel("y [m] (map)")
     ax.legend(loc="best", fontsize=8)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=PICTURE_DPI, bbox_inches="tight")
     plt.close(fig)
     atomic_write(out, buf.getvalue())
