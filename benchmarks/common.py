@@ -22,14 +22,16 @@ def _fmt(value: Any) -> str:
     return str(value)
 
 
-def print_table(title: str, columns: Sequence[str], rows: Sequence[Sequence[Any]]) -> None:
-    """Print a table with rich (plain text when stdout is not a terminal)."""
+def print_table(title: str, columns: Sequence[str], rows: Sequence[Sequence[Any]], compact: bool = False) -> None:
+    """Print a table with rich (plain text when stdout is not a terminal); ``compact``: rules, no cell borders."""
+    from rich import box
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=title)
+    table = Table(title=title, box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True) if compact \
+        else Table(title=title)
     for i, col in enumerate(columns):
-        table.add_column(col, justify="left" if i == 0 else "right")
+        table.add_column(col, justify="left" if i == 0 else "right", no_wrap=compact)
     for row in rows:
         table.add_row(*(_fmt(v) for v in row))
     Console().print(table)

@@ -36,7 +36,7 @@ from homing.benchmarks.engine import (
 )
 
 SHARED_LOGS = Path(__file__).resolve().parent.parent.parent / "shared" / "datasets" / "carmen"
-METHOD_LABELS = {"odometry": "odometry", "scan_matching": "scan matching", "grid": "grid SLAM", "graph": "pose graph"}
+METHOD_LABELS = {"odometry": "odometry", "scan_matching": "scan match", "grid": "grid SLAM", "graph": "pose graph"}
 PUBLISHED = {  # Kümmerle et al. 2009, translational error [m]: scan matching, RBPF (gmapping), graph mapping
     "aces": ((0.173, 0.614), (0.060, 0.049), (0.044, 0.044)),
     "intel": ((0.220, 0.296), (0.070, 0.083), (0.031, 0.026)),
@@ -112,8 +112,8 @@ def run(args: argparse.Namespace) -> int:
     with progress_bar("slam-logs", len(jobs)) as advance:
         outcomes = run_jobs(score_method, jobs, engine, lambda o: advance(_describe(o)))
     out, rows = summarise(outcomes)
-    print_table("SLAM on real logs: relation errors (Kümmerle et al. 2009), mean ± std and max",
-                ["log", "method", "trans m", "± std", "max m", "rot °", "± std", "max °", "ms/scan", "cpu ms"], rows)
+    print_table("SLAM on real logs: relation errors (Kümmerle et al. 2009), mean±std and max",
+                ["log", "method", "trans m", "max m", "rot °", "max °", "ms", "cpu ms"], rows, compact=True)
     write_json(args.json, out)
     return 0 if not out["failed"] else 1
 
@@ -129,13 +129,14 @@ def summarise(outcomes: list[Outcome]) -> tuple[dict[str, Any], list[list[Any]]]
             rows += _published(last)
         last = log
         if not o.ok:
-            rows.append([log, METHOD_LABELS[method], f"failed: {o.error}"[:60]] + [""] * 7)
+            rows.append([log, METHOD_LABELS[method], f"failed: {o.error}"[:60]] + [""] * 5)
             continue
         r = o.result
         out.setdefault(log, {})[method] = r
-        rows.append([log, METHOD_LABELS[method], r["trans_err_mean_m"], r["trans_err_std_m"], r["trans_err_max_m"],
-                     r["rot_err_mean_deg"], r["rot_err_std_deg"], r["rot_err_max_deg"], 1e3 * r["seconds_per_scan"],
-                     1e3 * r["cpu_seconds_per_scan"]])
+        rows.append([log, METHOD_LABELS[method], _pm(r["trans_err_mean_m"], r["trans_err_std_m"], 3),
+                     _num(r["trans_err_max_m"], 3), _pm(r["rot_err_mean_deg"], r["rot_err_std_deg"], 2),
+                     _num(r["rot_err_max_deg"], 1), _num(1e3 * r["seconds_per_scan"], 1),
+                     _num(1e3 * r["cpu_seconds_per_scan"], 1)])
     if last is not None:
         rows += _published(last)
     out["failed"] = failures_table(outcomes)
@@ -146,8 +147,17 @@ def _published(log: str) -> list[list[Any]]:
     fig = PUBLISHED.get(log)
     if fig is None:
         return []
-    labels = ("published scan matching", "published RBPF", "published graph")
-    return [[log, label, m, s, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan] for label, (m, s) in zip(labels, fig, strict=True)]
+    labels = ("SM (pub.)", "RBPF (pub.)", "graph (pub.)")
+    return [[log, label, _pm(m, s, 3), "–", "–", "–", "–", "–"] for label, (m, s) in zip(labels, fig, strict=True)]
+
+
+def _num(v: float, decimals: int) -> str:
+    """``v`` with ``decimals`` decimals below 10, one above (the table must fit 80 columns)."""
+    return "–" if math.isnan(v) else (f"{v:.{decimals}f}" if abs(v) < 10 else f"{v:.1f}")
+
+
+def _pm(mean: float, std: float, decimals: int) -> str:
+    return f"{_num(mean, decimals)}±{_num(std, decimals)}"
 
 
 def _describe(o: Outcome) -> str:
