@@ -175,9 +175,10 @@ class RoundRobin(Composite):
     A tick runs the current child; FAILURE moves on to the next child in the
     same tick (wrapping round), SUCCESS returns SUCCESS, RUNNING returns
     RUNNING. FAILURE only when every child has failed in a row. The turn is
-    kept across activations, so under a ``recovery`` node each recovery
-    attempt uses the next action (clear costmap, then spin, then back up, …).
-    As in Nav2, a halt (preemption while running) resets the turn to the first child.
+    kept across activations that succeed, so under a ``recovery`` node each
+    recovery attempt uses the next action (clear costmap, then spin, then
+    back up, …). As in Nav2, a halt (preemption while running) and a whole
+    round of failures both reset the turn to the first child.
     """
 
     def __init__(self, name: str, children: Seq[Behaviour]):
@@ -206,6 +207,8 @@ class RoundRobin(Composite):
                 yield self
                 return
             self.failed += 1
+        # A whole round failed: Nav2 halts the node, so the next activation starts at the first child.
+        self.index = 0
         self.failed = 0
         self.stop(Status.FAILURE)
         yield self
@@ -283,6 +286,9 @@ class Guard(Composite):
     RUNNING, which counts as "not yet true") → a running child is halted
     and the guard returns FAILURE. py_trees' ``EternalGuard`` with a
     condition node instead of a function; BT.CPP's ``_while`` precondition.
+    Whenever the guard finishes, whatever is still RUNNING below it (a
+    condition subtree that had not decided) is halted, so the next
+    activation starts the condition afresh (BT.CPP ``resetChildren``).
     """
 
     def __init__(self, name: str, condition: Behaviour, child: Behaviour):
@@ -302,11 +308,15 @@ class Guard(Composite):
             else:
                 self.stop(child.status)
         else:
-            if child.status == Status.RUNNING:
-                child.stop(Status.INVALID)
             self.feedback_message = f"guard '{condition.name}' is false"
             self.stop(Status.FAILURE)
         yield self
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        for node in self.children:
+            if node.status == Status.RUNNING:
+                node.stop(Status.INVALID)
+        super().stop(new_status)
 
 
 # --------------------------------------------------------------------------- decorators
