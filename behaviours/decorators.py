@@ -49,8 +49,54 @@ class _Clock:
 # --------------------------------------------------------------------------- composites
 
 
+class _PassesOverSkipped(py_trees.composites.Sequence):
+    """py_trees' ``Sequence`` that passes over a child left INVALID by its tick (BT.CPP's SKIPPED).
+
+    A node that decides not to run this tick (``run_once`` after its run)
+    reports INVALID, "not ticked"; as in BT.CPP, a sequence goes on to the
+    next child instead of stopping there, and a sequence whose children were
+    all skipped is skipped itself. Everything else is py_trees' own tick.
+    """
+
+    def tick(self) -> Iterator[Behaviour]:
+        first = 0
+        if self.status != Status.RUNNING:
+            self.current_child = self.children[0] if self.children else None
+            for child in self.children:
+                if child.status != Status.INVALID:
+                    child.stop(Status.INVALID)
+            self.initialise()
+        elif self.memory and self.current_child is not None:
+            first = self.children.index(self.current_child)
+        else:
+            self.current_child = self.children[0] if self.children else None
+        skipped = 0
+        for index, child in enumerate(self.children[first:], start=first):
+            self.current_child = child
+            for node in child.tick():
+                yield node
+                if node is child and node.status in (Status.RUNNING, Status.FAILURE):
+                    if not self.memory:
+                        for later in self.children[index + 1:]:
+                            if later.status != Status.INVALID:
+                                later.stop(Status.INVALID)
+                    if node.status == Status.FAILURE:
+                        self.stop(Status.FAILURE)
+                    else:
+                        self.status = Status.RUNNING
+                    yield self
+                    return
+            skipped += child.status == Status.INVALID
+        if self.children and skipped == len(self.children):
+            self.stop(Status.INVALID)
+            self.feedback_message = "every child skipped"
+        else:
+            self.stop(Status.SUCCESS)
+        yield self
+
+
 @register("sequence", kind="composite", params=(Param("memory", bool, True, doc="resume at the running child"),))
-class Sequence(py_trees.composites.Sequence):
+class Sequence(_PassesOverSkipped):
     """Tick children in order until one fails or runs; SUCCESS when all succeed.
 
     ``memory: true`` (the default) is py_trees ``Sequence(memory=True)`` and
@@ -65,7 +111,7 @@ class Sequence(py_trees.composites.Sequence):
 
 
 @register("reactive_sequence", kind="composite")
-class ReactiveSequence(py_trees.composites.Sequence):
+class ReactiveSequence(_PassesOverSkipped):
     """Re-tick every child from the first on every tick; a failing earlier child halts a running later one.
 
     py_trees ``Sequence(memory=False)``, BT.CPP ``ReactiveSequence``. Use it

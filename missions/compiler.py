@@ -237,6 +237,9 @@ class Compiler:
         children: dict[str, Any] = {}
         ok = params is not None
         for slot in slots:
+            if slot not in body and slot in spec.optional:
+                children[slot] = None
+                continue
             if slot not in body:
                 self.error(scope, loc, f"{spec.name} needs '{slot}:'" + (" (a list of nodes)" if slot == "children" else " (a node)"))
                 ok = False

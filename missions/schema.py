@@ -196,7 +196,8 @@ def _node_schema(spec: NodeSpec) -> dict[str, Any]:
             props[slot] = {"type": "array", "items": {"$ref": "#/$defs/node"}}
         else:
             props[slot] = {"$ref": "#/$defs/node"}
-        required.append(slot)
+        if slot not in spec.optional:
+            required.append(slot)
     body: dict[str, Any] = {"type": "object", "properties": props, "additionalProperties": False}
     if required:
         body["required"] = required
