@@ -371,22 +371,30 @@ class Guard(Composite):
 @register(
     "retry",
     kind="decorator",
-    params=(Param("attempts", int, REQUIRED, doc="attempts of the child in all (≥ 1)"),),
+    params=(Param("attempts", int, REQUIRED, doc="attempts of the child in all (≥ 1; -1 = until it succeeds)"),),
 )
 class Retry(py_trees.decorators.Retry):
     """Run the child up to ``attempts`` times until it succeeds; FAILURE on the last failure.
 
     ``attempts: 3`` = three attempts in all = py_trees ``Retry(num_failures=3)``
     = BT.CPP ``RetryUntilSuccessful(num_attempts=3)`` = Nav2
-    ``RecoveryNode(number_of_retries=2)`` without a recovery branch. A failed
+    ``RecoveryNode(number_of_retries=2)`` without a recovery branch;
+    ``attempts: -1`` retries until it succeeds (BT.CPP's -1). A failed
     attempt returns RUNNING for that tick and the child starts afresh on the
-    next one. Resets when the decorator restarts.
+    next one (BT.CPP retries within the same tick). Resets when the
+    decorator restarts.
     """
 
+    PORT_PARAMS = ("attempts",)
+
     def __init__(self, name: str, child: Behaviour, attempts: int):
-        if attempts < 1:
-            raise ValueError(f"attempts must be ≥ 1, not {attempts}")
-        super().__init__(name=name, child=child, num_failures=attempts)
+        super().__init__(name=name, child=child, num_failures=1)
+        self.set_port("attempts", attempts)
+
+    def set_port(self, name: str, value: int) -> None:
+        if value < 1 and value != -1:
+            raise ValueError(f"attempts must be ≥ 1 or -1 (until it succeeds), not {value}")
+        self.num_failures = math.inf if value == -1 else value  # type: ignore[assignment]
 
 
 @register(
@@ -442,10 +450,16 @@ class Repeat(py_trees.decorators.Repeat):
     on the next tick.
     """
 
+    PORT_PARAMS = ("times",)
+
     def __init__(self, name: str, child: Behaviour, times: int = -1):
-        if times == 0 or times < -1:
-            raise ValueError(f"times must be ≥ 1 or -1 (forever), not {times}")
-        super().__init__(name=name, child=child, num_success=times)
+        super().__init__(name=name, child=child, num_success=-1)
+        self.set_port("times", times)
+
+    def set_port(self, name: str, value: int) -> None:
+        if value == 0 or value < -1:
+            raise ValueError(f"times must be ≥ 1 or -1 (forever), not {value}")
+        self.num_success = value
 
 
 @register("inverter", kind="decorator")
@@ -534,6 +548,13 @@ class RateLimit(_Clock, py_trees.decorators.Decorator):
                 return
             self.last_start = now
         yield from super().tick()
+
+    PORT_PARAMS = ("hz",)
+
+    def set_port(self, name: str, value: float) -> None:
+        if not value > 0:
+            raise ValueError(f"hz must be > 0, not {value}")
+        self.period = 1.0 / float(value)
 
     def update(self) -> Status:
         status = self.decorated.status

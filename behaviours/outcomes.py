@@ -101,12 +101,8 @@ class SingleTrigger(py_trees.decorators.Decorator):
 
 
 def _mapping(name: str, base: type, doc: str) -> type:
-    """A registered status-mapping decorator over a py_trees class (they all take just a child)."""
-
-    def __init__(self: py_trees.decorators.Decorator, name: str, child: Behaviour) -> None:
-        base.__init__(self, name=name, child=child)
-
-    cls = type(base.__name__, (base,), {"__init__": __init__, "__doc__": doc, "__module__": __name__})
+    """A registered status-mapping decorator over a py_trees class (they all take just a name and a child)."""
+    cls = type(base.__name__, (base,), {"__doc__": doc, "__module__": __name__})
     return register(name, kind="decorator")(cls)
 
 

@@ -99,11 +99,12 @@ class RateController(_Trigger):
         self.period = 1.0 / float(hz)  # [s]
         self.start = 0.0  # [s] adapter clock: the decorator's start or the child's last success
 
+    PORT_PARAMS = ("hz",)
+
     def set_port(self, name: str, value: Any) -> None:
-        if name == "hz":
-            if not value > 0:
-                raise ValueError(f"hz must be > 0, not {value}")
-            self.period = 1.0 / float(value)
+        if not value > 0:
+            raise ValueError(f"hz must be > 0, not {value}")
+        self.period = 1.0 / float(value)
 
     def restart(self) -> None:
         self.start = self.now()
