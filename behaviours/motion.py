@@ -75,8 +75,8 @@ class _ReportsFailure(LongAction):
 class NavigateToPose(_ReportsFailure):
     """Drive to a goal pose in ``map`` with the navigation service's planner and controller; RUNNING while driving.
 
-    The goal is ``x``, ``y``, ``theta`` when given, otherwise the Pose2 at
-    ``goal_key``. ``theta`` nan: any final heading.
+    The goal is ``x``, ``y``, ``theta`` when given, otherwise the pose at
+    ``goal_key`` (a Pose2 or ``[x, y, theta]``). ``theta`` nan: any final heading.
     """
 
     PARAMS = (
@@ -107,7 +107,9 @@ class NavigateToPose(_ReportsFailure):
         if self.navigator is None:
             return self.fail("no_navigator", "no navigation service (add 'navigation' to services)")
         if math.isnan(self.x) or math.isnan(self.y):
-            goal = self.read(self.goal_key)
+            from homing.behaviours.paths import as_pose  # paths builds on this module
+
+            goal = as_pose(self.read(self.goal_key))
             if goal is None:
                 return self.fail("no_goal", f"nothing at {self.goal_key}")
         else:
