@@ -159,6 +159,7 @@ register("reactive_selector", kind="composite")(ReactiveFallback)
     kind="composite",
     params=(
         Param("success", (str, int), "all", doc="'all', 'one' or N: how many children must succeed"),
+        Param("failure", (str, int), "auto", doc="'auto' (once success is out of reach), 'all' or N failures that fail it"),
     ),
 )
 class Parallel(Composite):
@@ -167,23 +168,29 @@ class Parallel(Composite):
     ``success: all`` (default) = py_trees ``SuccessOnAll`` (synchronised) and
     BT.CPP ``ParallelNode`` with ``success_count = M``: any failure fails it.
     ``success: one`` = one success is enough, and it fails only when every
-    child has failed (py_trees' ``SuccessOnOne`` fails on the first failure;
-    BT.CPP's ``failure_count = M`` does what homing does). A child that has
-    finished is not ticked again until the parallel restarts; still-running
-    children are halted when the parallel finishes.
+    child has failed (py_trees' ``SuccessOnOne`` fails on the first failure:
+    add ``failure: 1``; BT.CPP's ``failure_count = M`` does what homing does).
+    ``failure: N`` also fails it after N failures, as BT.CPP's
+    ``failure_count`` (it fails too once success is out of reach). A child
+    that has finished is not ticked again until the parallel restarts;
+    still-running children are halted when the parallel finishes. A child
+    that skips itself (``run_once`` after its run) counts as neither.
     """
 
-    def __init__(self, name: str, children: Seq[Behaviour], success: str | int = "all"):
+    def __init__(self, name: str, children: Seq[Behaviour], success: str | int = "all", failure: str | int = "auto"):
         super().__init__(name=name, children=list(children))
         n = len(self.children)
-        if success == "all":
-            self.needed = n
-        elif success == "one":
-            self.needed = min(1, n)
-        elif isinstance(success, int) and not isinstance(success, bool) and 1 <= success <= max(n, 1):
-            self.needed = success
-        else:
-            raise ValueError(f"success must be 'all', 'one' or an integer 1..{n} (the number of children), not {success!r}")
+        self.needed = self._count("success", success, n, {"all": n, "one": min(1, n)})
+        self.failures_allowed = self._count("failure", failure, n, {"all": n, "auto": n + 1})
+
+    @staticmethod
+    def _count(what: str, value: str | int, n: int, words: dict[str, int]) -> int:
+        if isinstance(value, str) and value in words:
+            return words[value]
+        if isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= max(n, 1):
+            return value
+        spelt = ", ".join(f"'{w}'" for w in words)
+        raise ValueError(f"{what} must be {spelt} or an integer 1..{n} (the number of children), not {value!r}")
 
     def tick(self) -> Iterator[Behaviour]:
         if self.status != Status.RUNNING:
@@ -198,10 +205,11 @@ class Parallel(Composite):
             yield from child.tick()
         successes = sum(c.status == Status.SUCCESS for c in self.children)
         failures = sum(c.status == Status.FAILURE for c in self.children)
+        skipped = sum(c.status == Status.INVALID for c in self.children)
         self.feedback_message = f"{successes}/{self.needed} succeeded, {failures} failed"
-        if successes >= self.needed:
+        if successes >= min(self.needed, len(self.children) - skipped) and successes:
             self.stop(Status.SUCCESS)
-        elif len(self.children) - failures < self.needed:
+        elif len(self.children) - failures - skipped < self.needed or failures >= self.failures_allowed:
             self.stop(Status.FAILURE)
         else:
             self.status = Status.RUNNING

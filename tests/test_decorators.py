@@ -264,3 +264,15 @@ def test_round_robin_starts_at_first_child_after_a_whole_round_failed() -> None:
     a.script = [S]
     assert tick(rr) == S
     assert (a.ticks, b.ticks, c.ticks) == (3, 1, 1), "the next activation starts at the first child, not at b"
+
+
+def test_parallel_failure_threshold_as_bt_cpp_failure_count() -> None:
+    # py_trees' SuccessOnOne: the first failure fails it; BT.CPP failure_count = 1.
+    kids = [Scripted("a", [F]), Scripted("b", [R]), Scripted("c", after(3))]
+    par = d.Parallel("par", kids, success="one", failure=1)
+    assert tick(par) == F and kids[1].halts == 1
+    kids = [Scripted("a", [F]), Scripted("b", after(2)), Scripted("c", [R])]
+    auto = d.Parallel("p2", kids, success="one")  # 'auto': one failure does not decide it
+    assert [tick(auto), tick(auto)] == [R, S]
+    with pytest.raises(ValueError, match="failure must be 'all', 'auto'"):
+        d.Parallel("p3", [Scripted("x", [S])], failure=0)
