@@ -43,6 +43,16 @@ class _Branching(Composite):
             if child.status != Status.INVALID:
                 child.stop(Status.INVALID)
 
+    def _run(self, child: Behaviour) -> Iterator[Behaviour]:
+        """Tick ``child`` and take its status: RUNNING goes on, anything else finishes this node."""
+        self.current_child = child
+        yield from child.tick()
+        if child.status == Status.RUNNING:
+            self.status = Status.RUNNING
+        else:
+            self.stop(child.status)
+        yield self
+
 
 @register("if_then_else", kind="composite", slots=("if", "then", "else"), optional=("else",))
 class IfThenElse(_Branching):
@@ -84,14 +94,7 @@ class IfThenElse(_Branching):
                 self.status = Status.RUNNING
                 yield self
                 return
-        child = self.children[self.branch]
-        self.current_child = child
-        yield from child.tick()
-        if child.status == Status.RUNNING:
-            self.status = Status.RUNNING
-        else:
-            self.stop(child.status)
-        yield self
+        yield from self._run(self.children[self.branch])
 
     def stop(self, new_status: Status = Status.INVALID) -> None:
         self.branch = 0
@@ -138,13 +141,7 @@ class WhileDoElse(_Branching):
             self.stop(Status.FAILURE)
             yield self
             return
-        self.current_child = chosen
-        yield from chosen.tick()
-        if chosen.status == Status.RUNNING:
-            self.status = Status.RUNNING
-        else:
-            self.stop(chosen.status)
-        yield self
+        yield from self._run(chosen)
 
 
 def same_value(value: Any, case: Any) -> bool:
@@ -206,12 +203,5 @@ class Switch(_Branching):
             self.initialise()
         index = self.selected()
         halt_running([c for i, c in enumerate(self.children) if i != index])
-        child = self.children[index]
-        self.current_child = child
         self.feedback_message = f"case {self.cases[index]!r}" if index < len(self.cases) else "default"
-        yield from child.tick()
-        if child.status == Status.RUNNING:
-            self.status = Status.RUNNING
-        else:
-            self.stop(child.status)
-        yield self
+        yield from self._run(self.children[index])

@@ -119,6 +119,10 @@ class NavigateToPose(_ReportsFailure):
         return None
 
     def on_running(self) -> Status:
+        return self.step_navigator()
+
+    def step_navigator(self) -> Status:
+        """One step of ``self.navigator`` on this tick's observation and map pose: drive, report, map the status."""
         obs, pose = self.observation(), self.read(POSE_KEY)
         if obs is None or pose is None:
             self.feedback_message = "waiting for the map pose"

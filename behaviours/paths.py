@@ -31,9 +31,14 @@ from homing.behaviours.keys import (
     OBSERVATION_KEY,
     POSE_KEY,
 )
-from homing.behaviours.motion import FAILURE_KEY, FAILURE_PARAM, _ReportsFailure, failure_reason
+from homing.behaviours.motion import (
+    FAILURE_KEY,
+    FAILURE_PARAM,
+    NavigateToPose,
+    _ReportsFailure,
+    failure_reason,
+)
 from homing.behaviours.registry import Param, register
-from homing.navigation.navigator import NavStatus
 from homing.navigation.planner import PlanningError
 from homing.robot import Pose2
 from py_trees.common import Status
@@ -150,7 +155,7 @@ class ComputePathThroughPoses(_Planning):
 
 
 @register("FollowPath")
-class FollowPath(_ReportsFailure):
+class FollowPath(NavigateToPose):
     """Drive along the path at ``path_key`` with the navigation service's controller; RUNNING while driving: Nav2's ``FollowPath``.
 
     Never plans: a newer path written to ``path_key`` while it drives (the
@@ -173,10 +178,9 @@ class FollowPath(_ReportsFailure):
 
     def __init__(self, name: str, path_key: str = PATH_KEY, xy_tolerance: float = 0.15, yaw_tolerance: float = 0.25,
                  failure_key: str = FAILURE_KEY, timeout: float = 0.0) -> None:  # fmt: skip
-        self.path_key, self.failure_key = path_key, failure_key
-        super().__init__(name, timeout=timeout)
-        self.xy_tolerance, self.yaw_tolerance = xy_tolerance, yaw_tolerance
-        self.navigator: Any = None
+        self.path_key = path_key
+        super().__init__(name, xy_tolerance=xy_tolerance, yaw_tolerance=yaw_tolerance, timeout=timeout,
+                         failure_key=failure_key)  # fmt: skip
         self.path: Any = None
 
     @staticmethod
@@ -204,22 +208,7 @@ class FollowPath(_ReportsFailure):
             split = self._split(latest)
             if split is not None:
                 self.navigator.update_path(*split)
-        obs, pose = self.observation(), self.read(POSE_KEY)
-        if obs is None or pose is None:
-            self.feedback_message = "waiting for the map pose"
-            return Status.RUNNING
-        status, cmd, fb = self.navigator.step(obs, self.read(GRID_KEY), pose, self.read(MAP_TO_ODOM_KEY))
-        self.drive(cmd.v, cmd.omega)
-        self.feedback_message = fb.message
-        if status is NavStatus.SUCCEEDED:
-            return Status.SUCCESS
-        if status in (NavStatus.FAILED, NavStatus.CANCELLED):
-            return self.fail(failure_reason(fb.error), fb.message)
-        return Status.RUNNING
-
-    def on_cancel(self) -> None:
-        if self.navigator is not None:
-            self.navigator.cancel()
+        return self.step_navigator()
 
 
 @register("RemovePassedGoals")
