@@ -71,8 +71,33 @@ class _ReportsFailure(LongAction):
         return Status.FAILURE
 
 
+class _Navigating(_ReportsFailure):
+    """Drives with the navigation service's navigator (``self.navigator``, taken in ``on_start``) one step a tick."""
+
+    navigator: Any = None
+
+    def step_navigator(self) -> Status:
+        """One step of ``self.navigator`` on this tick's observation and map pose: drive, report, map the status."""
+        obs, pose = self.observation(), self.read(POSE_KEY)
+        if obs is None or pose is None:
+            self.feedback_message = "waiting for the map pose"
+            return Status.RUNNING
+        status, cmd, fb = self.navigator.step(obs, self.read(GRID_KEY), pose, self.read(MAP_TO_ODOM_KEY))
+        self.drive(cmd.v, cmd.omega)
+        self.feedback_message = fb.message
+        if status is NavStatus.SUCCEEDED:
+            return Status.SUCCESS
+        if status in (NavStatus.FAILED, NavStatus.CANCELLED):
+            return self.fail(failure_reason(fb.error), fb.message)
+        return Status.RUNNING
+
+    def on_cancel(self) -> None:
+        if self.navigator is not None:
+            self.navigator.cancel()
+
+
 @register("NavigateToPose")
-class NavigateToPose(_ReportsFailure):
+class NavigateToPose(_Navigating):
     """Drive to a goal pose in ``map`` with the navigation service's planner and controller; RUNNING while driving.
 
     The goal is ``x``, ``y``, ``theta`` when given, otherwise the pose at
@@ -120,25 +145,6 @@ class NavigateToPose(_ReportsFailure):
 
     def on_running(self) -> Status:
         return self.step_navigator()
-
-    def step_navigator(self) -> Status:
-        """One step of ``self.navigator`` on this tick's observation and map pose: drive, report, map the status."""
-        obs, pose = self.observation(), self.read(POSE_KEY)
-        if obs is None or pose is None:
-            self.feedback_message = "waiting for the map pose"
-            return Status.RUNNING
-        status, cmd, fb = self.navigator.step(obs, self.read(GRID_KEY), pose, self.read(MAP_TO_ODOM_KEY))
-        self.drive(cmd.v, cmd.omega)
-        self.feedback_message = fb.message
-        if status is NavStatus.SUCCEEDED:
-            return Status.SUCCESS
-        if status in (NavStatus.FAILED, NavStatus.CANCELLED):
-            return self.fail(failure_reason(fb.error), fb.message)
-        return Status.RUNNING
-
-    def on_cancel(self) -> None:
-        if self.navigator is not None:
-            self.navigator.cancel()
 
 
 class _MotionLeaf(_ReportsFailure):

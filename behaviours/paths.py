@@ -34,7 +34,7 @@ from homing.behaviours.keys import (
 from homing.behaviours.motion import (
     FAILURE_KEY,
     FAILURE_PARAM,
-    NavigateToPose,
+    _Navigating,
     _ReportsFailure,
     failure_reason,
 )
@@ -79,13 +79,16 @@ def with_heading(xy: np.ndarray, heading: float) -> np.ndarray:
 class _Planning(_ReportsFailure):
     """Plans on the navigation service's costmap from ``/map/pose`` in one tick and writes the path."""
 
+    path_key: str = PATH_KEY
+
     def plan_through(self, goals: list[Pose2]) -> Status | None:
         navigator, pose = self.read(NAVIGATOR_KEY), self.read(POSE_KEY)
         if navigator is None:
             return self.fail("no_navigator", "no navigation service (add 'navigation' to services)")
         if pose is None:
             return self.fail("no_pose", f"no robot pose at {POSE_KEY} yet")
-        pieces, start = [], pose
+        pieces: list[np.ndarray] = []
+        start = pose
         try:
             for goal in goals:
                 piece = navigator.plan_path(start, goal)
@@ -155,7 +158,7 @@ class ComputePathThroughPoses(_Planning):
 
 
 @register("FollowPath")
-class FollowPath(NavigateToPose):
+class FollowPath(_Navigating):
     """Drive along the path at ``path_key`` with the navigation service's controller; RUNNING while driving: Nav2's ``FollowPath``.
 
     Never plans: a newer path written to ``path_key`` while it drives (the
@@ -178,9 +181,9 @@ class FollowPath(NavigateToPose):
 
     def __init__(self, name: str, path_key: str = PATH_KEY, xy_tolerance: float = 0.15, yaw_tolerance: float = 0.25,
                  failure_key: str = FAILURE_KEY, timeout: float = 0.0) -> None:  # fmt: skip
-        self.path_key = path_key
-        super().__init__(name, xy_tolerance=xy_tolerance, yaw_tolerance=yaw_tolerance, timeout=timeout,
-                         failure_key=failure_key)  # fmt: skip
+        self.path_key, self.failure_key = path_key, failure_key
+        super().__init__(name, timeout=timeout)
+        self.xy_tolerance, self.yaw_tolerance = xy_tolerance, yaw_tolerance
         self.path: Any = None
 
     @staticmethod

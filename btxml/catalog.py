@@ -142,6 +142,7 @@ RULES: dict[str, Rule] = {
     "DistanceTraveled": _nav2("DistanceTraveled", {"distance": ("distance", "float")}),
     "IsBatteryLow": _nav2("BatteryBelow", {"min_battery": ("percent", "fraction")},
                           {"battery_topic": "the battery comes from the adapter", "is_voltage": "checked apart"}),
+    "IsBatteryCharging": _nav2("BatteryCharging", {}, {"battery_topic": "the battery comes from the adapter"}),
     "WouldAPlannerRecoveryHelp": _nav2("FailureIs", {"error_code": ("key", "key")}, reasons=list(PLANNER_REASONS),
                                        note="Nav2's error codes UNKNOWN, NO_VALID_PATH, TIMEOUT as homing's typed reasons"),
     "WouldAControllerRecoveryHelp": _nav2(
@@ -195,6 +196,8 @@ NO_EQUIVALENT: dict[str, str] = {
     "CancelControl": "halting the tree cancels", "CancelBackUp": "halting the tree cancels",
     "CancelSpin": "halting the tree cancels", "CancelWait": "halting the tree cancels",
     "CancelDriveOnHeading": "halting the tree cancels", "CancelAssistedTeleop": "halting the tree cancels",
+    "DockRobot": "no docking leaf in this build of homing (the lifecycle's AutoDock will be its equivalent)",
+    "UndockRobot": "no undocking leaf in this build of homing (the lifecycle's Undock will be its equivalent)",
     "AreErrorCodesPresent": "Nav2's numeric codes: use FailureIs with homing's typed reasons",
 }
 

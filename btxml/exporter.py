@@ -172,8 +172,8 @@ class Exporter:
         for tag in sorted(self.twins):
             category, ports = NAV2_MODELS[tag]
             model = ET.SubElement(models, category, {"ID": tag})
-            for port in ports:
-                ET.SubElement(model, "input_port", {"name": port})
+            for port_name in ports:
+                ET.SubElement(model, "input_port", {"name": port_name})
         for name, sub in self.source.subtrees.items():
             model = ET.SubElement(models, "SubTree", {"ID": name})
             for pname, default in sub.params.items():

@@ -120,7 +120,7 @@ class TreeServer:
         try:
             self.sock = socket.create_server((host, port), reuse_port=False)
         except OSError as err:
-            raise UserError(f"--serve {host}:{port}: {err.strerror or err}") from None
+            raise UserError(f"--serve {host}:{port}: {(err.strerror or str(err)).split(' (while')[0]}") from None
         self.host, self.port = self.sock.getsockname()[:2]
         self.followers: list[_Follower] = []
         self.lock = threading.Lock()

@@ -122,6 +122,8 @@ class Navigator:
     ``*_params`` go to their constructors. Not thread-safe; one goal at a time.
     """
 
+    path: np.ndarray | None  # (N, 2) [m] in map: the path being followed
+
     def __init__(self, planner: str = "fmm", controller: str = "rpp",
                  costmap: CostmapParams | None = None,
                  planner_params: dict[str, Any] | None = None,
@@ -213,7 +215,7 @@ class Navigator:
         self.costmap.release()
 
     def _reset_goal_state(self) -> None:
-        self.path: np.ndarray | None = None
+        self.path = None
         self._plan_time = -math.inf
         self._plan_fail_since: float | None = None
         self._blocked_since: float | None = None

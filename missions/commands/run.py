@@ -164,7 +164,13 @@ def run(args: argparse.Namespace) -> int:
             runner.on_tick = server.publish
         if live:
             with LiveView(mission) as view:
-                runner.on_tick = view.update if server is None else (lambda r: (view.update(r), server.publish(r)))
+
+                def on_tick(r: Any) -> None:
+                    view.update(r)
+                    if server is not None:
+                        server.publish(r)
+
+                runner.on_tick = on_tick
                 result = runner.run()
                 view.update(runner, force=True)
         else:
