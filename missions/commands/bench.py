@@ -23,7 +23,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         if not (hasattr(module, "add_arguments") and hasattr(module, "run")):
             continue
         doc = (module.__doc__ or "").strip().splitlines()
-        bench = names.add_parser(info.name, help=doc[0] if doc else None, description=module.__doc__)
+        name = info.name.replace("_", "-")  # slam_logs.py is `homing bench slam-logs` (slam_logs works too)
+        aliases = [info.name] if name != info.name else []
+        bench = names.add_parser(name, aliases=aliases, help=doc[0] if doc else None, description=module.__doc__)
         module.add_arguments(bench)
         bench.add_argument("--json", metavar="PATH", help="write the figures as JSON to PATH")
         bench.set_defaults(func=module.run)
