@@ -142,6 +142,14 @@ RULES: dict[str, Rule] = {
     "DistanceTraveled": _nav2("DistanceTraveled", {"distance": ("distance", "float")}),
     "IsBatteryLow": _nav2("BatteryBelow", {"min_battery": ("percent", "fraction")},
                           {"battery_topic": "the battery comes from the adapter", "is_voltage": "checked apart"}),
+    "UndockRobot": _nav2("Undock", {"max_undocking_time": ("timeout", "float"), "error_code_id": ("failure_key", "key")},
+                         {"dock_type": "homing's robot has one dock"}, turn=0.0, timeout=30.0,
+                         note="homing's Undock backs straight out; Nav2's does not turn either (turn: 0)"),
+    "DockRobot": _nav2("AutoDock", {"max_staging_time": ("timeout", "float"), "error_code_id": ("failure_key", "key")},
+                       {"dock_id": "homing's robot has one dock (the navigation service's /nav/dock)",
+                        "dock_type": "homing's robot has one dock", "use_dock_id": "homing's robot has one dock",
+                        "navigate_to_staging_pose": "read by the importer: GoHome first unless false"},
+                       note="GoHome to the staging pose, then AutoDock (IR): Nav2's DockRobot in homing's leaves"),
     "IsBatteryCharging": _nav2("BatteryCharging", {}, {"battery_topic": "the battery comes from the adapter"}),
     "WouldAPlannerRecoveryHelp": _nav2("FailureIs", {"error_code": ("key", "key")}, reasons=list(PLANNER_REASONS),
                                        note="Nav2's error codes UNKNOWN, NO_VALID_PATH, TIMEOUT as homing's typed reasons"),
@@ -196,8 +204,6 @@ NO_EQUIVALENT: dict[str, str] = {
     "CancelControl": "halting the tree cancels", "CancelBackUp": "halting the tree cancels",
     "CancelSpin": "halting the tree cancels", "CancelWait": "halting the tree cancels",
     "CancelDriveOnHeading": "halting the tree cancels", "CancelAssistedTeleop": "halting the tree cancels",
-    "DockRobot": "no docking leaf in this build of homing (the lifecycle's AutoDock will be its equivalent)",
-    "UndockRobot": "no undocking leaf in this build of homing (the lifecycle's Undock will be its equivalent)",
     "AreErrorCodesPresent": "Nav2's numeric codes: use FailureIs with homing's typed reasons",
 }
 

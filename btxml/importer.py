@@ -283,12 +283,23 @@ class Importer:
         if rule.homing == "speed_controller" and "goal" not in el.attrs:
             body["goal_key"] = "goal"
             watcher = True
+        if tag == "DockRobot":
+            return self.dock_robot(el, body)
         order = [p.name for p in spec.params]
         body = dict(sorted(body.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else len(order)))
         node = self.finish(el, rule.homing, body, self.children(el, spec, tag))
         if watcher and isinstance(node, dict):
             self.watchers.append(node[rule.homing])
         return node
+
+    def dock_robot(self, el: Element, body: dict[str, Any]) -> Any:
+        """Nav2's DockRobot: homing's GoHome (unless navigate_to_staging_pose is false), then AutoDock."""
+        dock = {"AutoDock": {k: v for k, v in body.items() if k == "failure_key"} or None}
+        if not BOOLS.get(el.attrs.get("navigate_to_staging_pose", "true").lower(), True):
+            return dock
+        home = {k: v for k, v in body.items() if k in ("failure_key", "timeout")}
+        name = self.unique_name(el.attrs.get("name", "DockRobot"))
+        return {"sequence": {"name": name, "children": [{"GoHome": home or None}, dock]}}
 
     def value(self, el: Element, attr: str, text: str, conv: str, tag: str) -> Any:
         port = parse_port(text)
