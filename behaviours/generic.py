@@ -248,6 +248,19 @@ class BatteryBelow(_BatteryCondition):
     ABOVE = False
 
 
+@register("BatteryCharging", kind="condition")
+class BatteryCharging(HomingBehaviour):
+    """SUCCESS while the base battery is charging, on the dock or an adapter (Nav2 ``IsBatteryCharging``; reads /robot/observation)."""
+
+    READS = (OBSERVATION_KEY,)
+
+    def update(self) -> Status:
+        obs = self.observation()
+        charging = obs is not None and obs.battery.charging
+        self.feedback_message = "charging" if charging else "not charging"
+        return Status.SUCCESS if charging else Status.FAILURE
+
+
 @register("MissionState")
 class MissionState(HomingBehaviour):
     """Write the lifecycle state shown in the view (``/mission/state``) and SUCCEED."""

@@ -145,6 +145,10 @@ class Runner:
                 client.register_key(key=key, access=Access.READ)
             service.setup(self.robot, client)
             self.services.append(service)
+        initial = py_trees.blackboard.Client(name="mission:blackboard")
+        for key, value in self.mission.blackboard.items():  # the mission's blackboard: entries
+            initial.register_key(key=key, access=Access.WRITE)
+            initial.set(key, value, overwrite=True)
         self.tree.setup(robot=self.robot, seed=self.seed)
         self.start = self.now = float(self.robot.clock.now())
         self.wall_start = time.monotonic()

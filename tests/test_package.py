@@ -15,7 +15,8 @@ except ModuleNotFoundError:  # Python 3.10
 
 from tests.conftest import REPO
 
-PARTS = ["robot", "sim", "perception", "mapping", "navigation", "lifecycle", "behaviours", "missions", "benchmarks"]
+PARTS = ["robot", "sim", "perception", "mapping", "navigation", "lifecycle", "behaviours", "missions", "benchmarks",
+         "btxml", "logs", "emulators"]
 
 
 def test_every_folder_with_init_is_a_listed_package() -> None:

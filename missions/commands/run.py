@@ -43,6 +43,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--record-images", action="store_true",
                         help="with --record: also log the camera images (JPEG; exported to MCAP by 'homing replay')")
     parser.add_argument("--save-map", metavar="PATH", help="save the final /map/grid as a map_server map (PATH.yaml + .pgm)")
+    parser.add_argument(
+        "--serve", metavar="[HOST:]PORT",
+        help="stream the tree to followers ('homing view --attach HOST:PORT'); binds 127.0.0.1 unless given a host",
+    )  # fmt: skip
     add_set_argument(parser)
     parser.set_defaults(func=run)
 
@@ -107,6 +111,25 @@ def _save_map(args: argparse.Namespace, runner: Any) -> None:
     print(f"map saved: {save_grid(args.save_map, grid)}")
 
 
+def _server(args: argparse.Namespace, mission: Any) -> Any:
+    """The tree server for ``--serve`` (bound before the run starts, so a taken port fails at once), or None."""
+    if not args.serve:
+        return None
+    from homing.missions.remote import TreeServer, parse_address
+    from homing.missions.view import LiveView
+
+    from homing.errors import UserError
+
+    try:
+        host, port = parse_address(args.serve)
+    except ValueError as err:
+        raise UserError(f"--serve: {err}") from None
+    server = TreeServer(host, port, lambda console: LiveView(mission, console))
+    print(f"serving the tree on {server.host}:{server.port} (follow with: homing view --attach {server.host}:{server.port})",
+          file=sys.stderr, flush=True)  # fmt: skip
+    return server
+
+
 def run(args: argparse.Namespace) -> int:
     from homing.missions.commands.check import overrides
     from homing.missions.compiler import compile_mission
@@ -138,6 +161,7 @@ def run(args: argparse.Namespace) -> int:
         if not live:
             plain(change)
 
+    server = _server(args, mission)
     robot = _adapter(args)
     recorder = None
     try:
@@ -147,14 +171,26 @@ def run(args: argparse.Namespace) -> int:
                         recorder=recorder, truth=truth)
         if args.save_map:
             runner.bb.register_key(key="/map/grid", access=Access.READ)
+        if server is not None:
+            runner.on_tick = server.publish
         if live:
             with LiveView(mission) as view:
-                runner.on_tick = view.update
+
+                def on_tick(r: Any) -> None:
+                    view.update(r)
+                    if server is not None:
+                        server.publish(r)
+
+                runner.on_tick = on_tick
                 result = runner.run()
                 view.update(runner, force=True)
         else:
             result = runner.run()
+        if server is not None:
+            server.publish(runner, force=True)
     finally:
+        if server is not None:
+            server.close()
         if recorder is not None:
             recorder.close()
         robot.close()
