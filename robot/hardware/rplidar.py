@@ -30,7 +30,7 @@ from homing.robot.turtlebot import LIDAR_RANGE_MAX, LIDAR_RANGE_MIN
 from homing.robot.types import Pose2, Scan
 
 SILENCE = 1.0  # [s] more than five revolutions without a byte: the lidar is lost
-REPLY_TIMEOUT = 1.0  # [s] for GET_HEALTH's answer
+REPLY_TIMEOUT = 0.3  # [s] for GET_HEALTH's answer (the A1 answers within milliseconds; a cut reply is asked again)
 HANDSHAKE_TIME = 3.0  # [s] ask for the health again until this long has passed (a noisy line garbles replies)
 
 
