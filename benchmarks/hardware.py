@@ -129,10 +129,14 @@ def _camera_latency(frames: int, seed: int) -> tuple[list[float], list[float]]:
     try:
         opener = threading.Thread(target=camera.open)  # FFmpeg probes two frames before it opens
         opener.start()
+        due = time.monotonic()
         while opener.is_alive():
             server.publish(sim.render().image, time.monotonic())
-            opener.join(sim.camera_period)
+            due += sim.camera_period
+            opener.join(max(0.0, due - time.monotonic()))
         for k in range(1, frames + 1):
+            time.sleep(max(0.0, due - time.monotonic()))  # frames one camera period apart, as the emulator's
+            due += sim.camera_period
             t0 = time.monotonic()
             image = sim.render().image.copy()
             _draw_number(image, k)
@@ -145,7 +149,6 @@ def _camera_latency(frames: int, seed: int) -> tuple[list[float], list[float]]:
                     sent.append((got.stamp - t1) * 1e3)
                     break
                 time.sleep(0.0005)
-            time.sleep(max(0.0, t0 + sim.camera_period - time.monotonic()))
     finally:
         server.stop()  # first: the camera's read returns at once instead of timing out
         camera.close()
