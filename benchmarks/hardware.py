@@ -10,8 +10,9 @@ clock. Reports:
   base's 50 Hz, the lidar's 5.5 Hz × 360 nodes);
 - ``latency_ms``: from ``command(0, 0.5)`` on a still robot to the first
   feedback packet whose gyro shows the turn (median and p95 over
-  ``--trials``): the command's bytes, the firmware's 20 ms cycle, the
-  feedback's bytes, the adapter's thread;
+  ``--trials``): the command's bytes, the emulated base's dead time (the
+  real base's 200 ms, ``homing.emulators.kobuki.DEAD_TIME``), the
+  firmware's 20 ms cycle, the feedback's bytes, the adapter's thread;
 - per line-noise level (each byte the devices send has a bit flipped with
   probability ``flip``; each write also gets a garbage burst or is cut short
   with probability 20·flip): packets decoded, dropped for a bad checksum,

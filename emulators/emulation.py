@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from homing.emulators.camera_stream import MjpegServer
-from homing.emulators.kobuki import KobukiFirmware
+from homing.emulators.kobuki import DEAD_TIME, KobukiFirmware
 from homing.emulators.pty_link import LineNoise, PtyLink
 from homing.emulators.rplidar import RplidarFirmware
 from homing.robot.hardware.camera import calibration_yaml, pinhole
@@ -86,13 +86,14 @@ class Emulation:
     """The simulated robot behind emulated serial devices in ``folder``."""
 
     def __init__(self, world: World, folder: str | Path, seed: int = 0, noise: LineNoise | None = None,
-                 command_noise: LineNoise | None = None, camera: bool = True, camera_port: int = 0):
+                 command_noise: LineNoise | None = None, camera: bool = True, camera_port: int = 0,
+                 dead_time: float = DEAD_TIME):
         from homing.sim.robot import SimRobot
 
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.robot = SimRobot(world, seed=seed, camera=camera)
-        self.base = KobukiFirmware()
+        self.base = KobukiFirmware(dead_time=dead_time)
         self.lidar = RplidarFirmware()
         self.base_link = PtyLink(self.folder / "kobuki", noise)
         self.lidar_link = PtyLink(self.folder / "rplidar", noise)
@@ -102,7 +103,6 @@ class Emulation:
         self.command_noise = command_noise or LineNoise()
         self.packets = 0
         self.distance = 0.0  # [m] travelled (truth)
-        self.first_motion: float | None = None  # [s] wall clock when the wheels first turned after a command
         self.lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -210,9 +210,9 @@ class Emulation:
             time.sleep(max(0.0, deadline - time.monotonic()))
 
     def _tick(self, dt: float, wall: float) -> None:
-        self.base.receive(self.command_noise(self.base_link.read()))
+        self.base.receive(self.command_noise(self.base_link.read()), wall)
         self.lidar.receive(self.command_noise(self.lidar_link.read()))
-        v, omega = self.base.velocity()
+        v, omega = self.base.velocity(wall)
         before = self.robot.truth_pose()
         self.robot.command(v, omega)
         self.robot.step(dt)

@@ -25,6 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(default: a new temporary folder)")  # fmt: skip
     parser.add_argument("--noise", type=float, default=0.0, metavar="P",
                         help="line noise: each byte the devices send has a bit flipped with probability P")
+    parser.add_argument("--dead-time", type=float, default=None, metavar="S",
+                        help="seconds from a base command to the wheels' response (default: the real base's 0.2)")
     parser.add_argument("--camera-port", type=int, default=0, metavar="PORT",
                         help="serve the camera's MJPEG stream on this localhost port (default: a free one)")
     parser.add_argument("--no-camera", action="store_true", help="no camera (nothing rendered, no stream)")
@@ -34,6 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from homing.emulators.emulation import Emulation
+    from homing.emulators.kobuki import DEAD_TIME
     from homing.emulators.pty_link import LineNoise
     from homing.missions.runner import parse_duration
     from homing.sim import load_world
@@ -42,6 +45,8 @@ def run(args: argparse.Namespace) -> int:
 
     if not 0.0 <= args.noise < 1.0:
         raise UserError(f"--noise must be a probability in [0, 1), not {args.noise:g}")
+    if args.dead_time is not None and not 0.0 <= args.dead_time <= 5.0:
+        raise UserError(f"--dead-time must be in [0, 5] s, not {args.dead_time:g}")
     if not 0 <= args.camera_port <= 65535:
         raise UserError(f"--camera-port must be a TCP port in 0..65535, not {args.camera_port}")
     try:
@@ -52,7 +57,8 @@ def run(args: argparse.Namespace) -> int:
     folder = args.dir or tempfile.mkdtemp(prefix="homing-emulate-")
     try:
         emulation = Emulation(world, folder, seed=args.seed, noise=LineNoise(flip=args.noise, seed=args.seed),
-                              camera=not args.no_camera, camera_port=args.camera_port)  # fmt: skip
+                              camera=not args.no_camera, camera_port=args.camera_port,
+                              dead_time=DEAD_TIME if args.dead_time is None else args.dead_time)  # fmt: skip
     except OSError as err:
         raise UserError(f"--dir: cannot use {folder}: {err.strerror}", folder) from None
     done = threading.Event()
