@@ -48,6 +48,7 @@ MISFIT_POINTS = 40
 MISFIT_SCORE = 0.5
 LOST_AFTER = 2
 RELOCALISE_PERIOD = 1.0  # [s]
+MIN_RETURNS = 30  # a scan with fewer returns (a lidar dropout) is neither matched nor drawn
 MAX_CORRECTION_XY = 0.30  # [m] a larger jump between consecutive scans is rejected as a false match
 MAX_CORRECTION_THETA = math.radians(10.0)  # [rad]
 WARMUP_SCANS = 3  # scans fused at the odometry pose before matching starts
@@ -142,6 +143,8 @@ class GridSlam:
 
     # ------------------------------------------------------------------ core
     def _fuse(self, scan: Scan, odom_pose: Pose2) -> None:
+        if int(scan.valid().sum()) < MIN_RETURNS:
+            return  # a dropout: nothing to match, and its no-returns are no evidence of free space
         predicted = self.map_to_odom.compose(odom_pose)
         corrected = predicted
         if self.matcher is not None and self.scans_fused >= WARMUP_SCANS:
