@@ -1,14 +1,59 @@
-"""What every benchmark shares: the printed table and the JSON file."""
+"""What every benchmark shares: the public floor plans, the printed table and the JSON file."""
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from homing.atomic import atomic_write
+
+WORLDS_ENV = "HOMING_WORLDS"  # a folder of map_server floor plans, searched first
+PUBLIC_PLANS = ("room", "corner", "corridor", "loop", "loop_with_corridor", "room_with_corner")
+
+
+def plan_folders() -> list[Path]:
+    """Where the public floor plans may be, in search order (absolute, without repeats).
+
+    ``$HOMING_WORLDS``; ``shared/worlds`` beside the working directory and
+    beside its parent (the development layout, run from the project root or
+    from above it); beside the source checkout (an editable install, from any
+    working directory). An installed wheel has no checkout: the first two apply.
+    """
+    candidates = []
+    if os.environ.get(WORLDS_ENV):
+        candidates.append(Path(os.environ[WORLDS_ENV]).expanduser())
+    cwd = Path.cwd()
+    candidates += [cwd / "shared" / "worlds", cwd.parent / "shared" / "worlds"]
+    candidates.append(Path(__file__).resolve().parents[2] / "shared" / "worlds")
+    out: list[Path] = []
+    for c in candidates:
+        c = c.resolve()
+        if c not in out:
+            out.append(c)
+    return out
+
+
+def find_plans(names: Sequence[str] = PUBLIC_PLANS, *, why: str = "",
+               folders: Sequence[Path] | None = None) -> dict[str, Path]:
+    """``{name: YAML}`` of the public floor plans in the first of ``folders`` (default :func:`plan_folders`) holding any.
+
+    When none is found, says on stderr where it looked and what the benchmark
+    does instead (``why``), and returns an empty dict.
+    """
+    folders = plan_folders() if folders is None else folders
+    for folder in folders:
+        found = {n: folder / f"{n}.yaml" for n in names if (folder / f"{n}.yaml").is_file()}
+        if found:
+            return found
+    looked = ", ".join(str(f) for f in folders)
+    print(f"note: no public floor plans found (looked in {looked}; set {WORLDS_ENV}=DIR)"
+          + (f": {why}" if why else ""), file=sys.stderr)
+    return {}
 
 
 def _fmt(value: Any) -> str:

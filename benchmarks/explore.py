@@ -45,12 +45,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from homing.benchmarks.common import print_table, write_json
+from homing.benchmarks.common import find_plans, print_table, write_json
 from homing.robot import Pose2
 
 STRATEGY_ORDER = ("nearest", "largest_closest", "largest_random", "largest_random_raw", "explore_lite", "gain_rate",
                   "frontier_travel")
-SHARED_WORLDS = Path(__file__).resolve().parent.parent.parent / "shared" / "worlds"
 MISSION = Path(__file__).resolve().parent.parent / "missions" / "explore.yaml"
 COVERAGE_PERIOD = 5.0  # [s] adapter time between coverage samples (time to 95 %, and the efficiency taken then)
 COVERAGE_TARGET = 0.95
@@ -88,13 +87,10 @@ class RunResult:
 
 
 def world_specs(names: list[str] | None) -> list[str]:
-    """World specs to run: the given ones, or ``lab`` plus the shared floor plans that exist."""
+    """World specs to run: the given ones, or ``lab`` plus the public floor plans found."""
     if names:
         return names
-    specs = ["lab"]
-    if SHARED_WORLDS.is_dir():
-        specs += [str(p) for p in sorted(SHARED_WORLDS.glob("*.yaml"))]
-    return specs
+    return ["lab", *sorted(str(p) for p in find_plans(why="exploring lab only").values())]
 
 
 def world_label(spec: str) -> str:
@@ -247,7 +243,7 @@ def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
 # -- CLI ------------------------------------------------------------------------------------------------
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--worlds", nargs="+", metavar="WORLD",
-                        help="bundled names or YAML paths (default: lab and ../shared/worlds/*.yaml)")
+                        help="bundled names or YAML paths (default: lab and the public floor plans found)")
     parser.add_argument("--strategies", nargs="+", default=list(STRATEGY_ORDER), metavar="NAME",
                         help=f"frontier strategies (default: all: {', '.join(STRATEGY_ORDER)})")
     parser.add_argument("--seeds", type=int, default=5, help="seeds per world and strategy (0..N-1)")

@@ -48,7 +48,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from homing.benchmarks.common import print_table, write_json
+from homing.benchmarks.common import find_plans, print_table, write_json
 from homing.benchmarks.slam_score import Collector
 from homing.mapping.landmark_slam import LandmarkSlam, SlamConfig
 from homing.mapping.landmark_synthetic import synthetic_loop
@@ -345,7 +345,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--map-world", action="append", metavar="MAP.yaml",
         help="a map_server map to run in too, with the dock auto-placed and --tags tags added "
-        "(repeatable; default: ../shared/worlds/loop.yaml when it exists)",
+        "(repeatable; default: the public loop.yaml when found, see $HOMING_WORLDS)",
     )  # fmt: skip
     parser.add_argument("--tags", type=int, default=10, help="tags added to each --map-world")
     parser.add_argument("--scenarios", default="loop,explore,cycles,synthetic",
@@ -364,8 +364,7 @@ def _worlds(args: argparse.Namespace, folder: Path) -> list[tuple[str, Any]]:
     out: list[tuple[str, Any]] = [(w, w) for w in (args.world or ["lab"])]
     maps = args.map_world
     if maps is None:
-        default = Path("../shared/worlds/loop.yaml")
-        maps = [str(default)] if default.is_file() else []
+        maps = [str(p) for p in find_plans(("loop",), why="no --map-world run").values()]
     for m in maps:
         out.append((Path(m).stem + "+tags", tagged_world(Path(m), folder, args.tags)))
     return out

@@ -45,9 +45,9 @@ def test_lab_is_the_thesis_lab() -> None:
     assert lab.reachable_free().sum() == (lab.map.grid == FREE).sum()  # one connected lab
 
 
-def test_bare_floor_plan_gets_a_dock_against_a_wall_and_starts_docked(shared_worlds: Path) -> None:
+def test_bare_floor_plan_gets_a_dock_against_a_wall_and_starts_docked(floor_plans: Path) -> None:
     for name in ("loop", "room_with_corner", "corridor"):
-        world = load_world(shared_worlds / f"{name}.yaml")
+        world = load_world(floor_plans / f"{name}.yaml")
         station = world.dock.station
         assert not _free(world, station, -0.02), "no wall behind the dock"
         for ahead in np.arange(0.05, 1.5, 0.1):  # ~1 m clear in front of the docked robot
@@ -56,14 +56,14 @@ def test_bare_floor_plan_gets_a_dock_against_a_wall_and_starts_docked(shared_wor
                 assert _free(world, p, ahead)
         assert world.start == world.dock_pose
         assert world.dock_pose.distance_to(station) == pytest.approx(DOCK_DEPTH + 0.176)
-        assert load_world(shared_worlds / f"{name}.yaml").dock == world.dock  # deterministic
+        assert load_world(floor_plans / f"{name}.yaml").dock == world.dock  # deterministic
     robot = SimRobot(world, seed=1, camera=False)
     assert robot.charging and robot.observe().battery.on_dock
     robot.close()
 
 
-def test_reachable_free_is_the_start_component(shared_worlds: Path) -> None:
-    world = load_world(shared_worlds / "loop.yaml")
+def test_reachable_free_is_the_start_component(floor_plans: Path) -> None:
+    world = load_world(floor_plans / "loop.yaml")
     reach = world.reachable_free()
     assert reach.dtype == bool and reach.shape == world.map.grid.shape
     assert np.all(world.map.grid[reach] == FREE)
