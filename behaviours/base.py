@@ -31,7 +31,8 @@ from homing.robot import Observation, RobotAdapter, Twist2
 from py_trees.common import Access, Status
 
 TIMEOUT_PARAM = Param(
-    "timeout", float, 0.0, "s", "give up (FAILURE, reason 'timed_out') after this long on the adapter clock; 0 = never"
+    "timeout", float, 0.0, "s", "give up (FAILURE, reason 'timed_out') after this long on the adapter clock; 0 = never",
+    minimum=0.0,
 )
 
 

@@ -29,8 +29,9 @@ how good a map the run built), and bumper presses. Ratios to
 ``nearest`` and to ``explore_lite`` are computed run by run (same world,
 same seed), then the median is reported.
 
-Worlds default to the bundled ``lab`` and the six floor plans in
-``../shared/worlds/`` when present. Runs go to ``--workers`` processes.
+Worlds default to the bundled ``lab`` and the six public floor plans when
+found (``$HOMING_WORLDS``, or ``shared/worlds`` beside the working directory or
+its parent). Runs go to ``--workers`` processes.
 """
 
 from __future__ import annotations
@@ -242,18 +243,21 @@ def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
 
 # -- CLI ------------------------------------------------------------------------------------------------
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from homing.missions.commands._args import count, output_file, output_folder, positive
+
     parser.add_argument("--worlds", nargs="+", metavar="WORLD",
                         help="bundled names or YAML paths (default: lab and the public floor plans found)")
     parser.add_argument("--strategies", nargs="+", default=list(STRATEGY_ORDER), metavar="NAME",
                         help=f"frontier strategies (default: all: {', '.join(STRATEGY_ORDER)})")
-    parser.add_argument("--seeds", type=int, default=5, help="seeds per world and strategy (0..N-1)")
-    parser.add_argument("--minutes", type=float, default=30.0, help="simulated minutes per run (thesis: 30)")
-    parser.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 1) - 1), help="worker processes")
-    parser.add_argument("--runs-json", metavar="PATH", help="also write every run's figures to PATH")
+    parser.add_argument("--seeds", type=count, default=5, help="seeds per world and strategy (0..N-1)")
+    parser.add_argument("--minutes", type=positive, default=30.0, help="simulated minutes per run (thesis: 30)")
+    parser.add_argument("--workers", type=count, default=max(1, (os.cpu_count() or 1) - 1), help="worker processes")
+    parser.add_argument("--runs-json", metavar="PATH", type=output_file("--runs-json"),
+                        help="also write every run's figures to PATH")
     parser.add_argument("--from-runs", nargs="+", metavar="PATH",
                         help="run nothing: tabulate the runs saved by earlier --runs-json (e.g. baselines and "
                              "the default run separately), filtered by --worlds/--strategies when given")
-    parser.add_argument("--save-maps", metavar="DIR",
+    parser.add_argument("--save-maps", metavar="DIR", type=output_folder("--save-maps"),
                         help="save each run's final grid as DIR/WORLD_STRATEGY_SEED.yaml (+ .pgm; see homing map show)")
 
 
@@ -266,8 +270,6 @@ def run(args: argparse.Namespace) -> int:
     bad = [s for s in args.strategies if s not in STRATEGIES]
     if bad:
         raise UserError(f"unknown strategy {', '.join(bad)} (known: {', '.join(sorted(STRATEGIES))})")
-    if args.seeds < 1 or args.minutes <= 0 or args.workers < 1:
-        raise UserError("--seeds and --workers must be ≥ 1 and --minutes positive")
     worlds = world_specs(args.worlds)
     for w in worlds:
         from homing.sim.world import resolve

@@ -50,11 +50,13 @@ TRUTH_SLACK = 0.10  # [m] the true pose may miss the goal by the tolerance plus 
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from homing.missions.commands._args import count
+
     parser.add_argument("--worlds", nargs="*",
                         help="bundled world names, public floor plan names, world YAMLs or map_server YAMLs "
                              "(default: the six public maps found + lab)")
-    parser.add_argument("--goals", type=int, default=5, help="goals per world and seed")
-    parser.add_argument("--seeds", type=int, default=1, help="seeds 1..N")
+    parser.add_argument("--goals", type=count, default=5, help="goals per world and seed")
+    parser.add_argument("--seeds", type=count, default=1, help="seeds 1..N")
     parser.add_argument("--controllers", nargs="*", default=["rpp", "dwb"])
     parser.add_argument("--grids", nargs="*", default=["true"], choices=["true", "slam"],
                         help="grid and pose source: the true map and pose, or live grid SLAM")

@@ -23,10 +23,12 @@ RES = 0.05  # [m] the costmap resolution the target is stated for
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from homing.missions.commands._args import count, seed
+
     parser.add_argument("--maps", nargs="*", default=None,
                         help="map_server YAML files (default: the public floor plans found, else the lab's)")
-    parser.add_argument("--pairs", type=int, default=10, help="start/goal pairs per map")
-    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--pairs", type=count, default=10, help="start/goal pairs per map")
+    parser.add_argument("--seed", type=seed, default=1)
     parser.add_argument("--planners", nargs="*", default=["dijkstra", "fmm", "astar"])
 
 

@@ -29,10 +29,12 @@ PATH = ((-0.2, 0.0, 4.0), (0.0, 0.8, 8.0), (0.4, 0.0, 5.0), (0.0, 0.8, 2.0), (0.
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--seconds", type=float, default=120.0, help="simulated seconds per run (default 120)")
+    from homing.missions.commands._args import positive, seed
+
+    parser.add_argument("--seconds", type=positive, default=120.0, help="simulated seconds per run (default 120)")
     parser.add_argument("--worlds", nargs="+",
                         help="worlds to drive in (default: lab and the public loop.yaml, see $HOMING_WORLDS)")
-    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--seed", type=seed, default=1)
 
 
 def _commands(seconds: float):  # noqa: ANN202 - generator of (v, ω)

@@ -41,6 +41,8 @@ SUBTREE_KEYS: dict[str, str] = {
     "tree": "the subtree's root node",
 }
 DEFAULT_RATE = 10.0  # [Hz]
+MIN_RATE = 1.0  # [Hz] slower, and the robot drives blind on one command for over a second
+MAX_RATE = 1000.0  # [Hz] faster than any sensor or the base's 50 Hz control loop can use
 DEFAULT_SERVICES = ("grid_slam", "navigation")
 
 # Units a parameter may declare, and the spellings accepted for each, as factors to it.
@@ -100,7 +102,32 @@ def _types(param: Param) -> tuple[type, ...]:
 
 
 def check_value(param: Param, value: Any) -> Any:
-    """The value converted to the parameter's type and unit; raises ValueError with a one-line reason."""
+    """The value converted to the parameter's type and unit, within its bounds; raises ValueError with a one-line reason."""
+    out = _convert(param, value)
+    if isinstance(out, (int, float)) and not isinstance(out, bool):
+        _check_number(param, out, value)
+    return out
+
+
+def _check_number(param: Param, number: float, given: Any) -> None:
+    """Finite (NaN only where the default is NaN) and within the declared bounds, or ValueError."""
+    unit = f" {param.unit}" if param.unit and param.unit != "%" else param.unit
+    shown = given if isinstance(given, str) else f"{number:g}{unit}"
+    if math.isnan(number):
+        if isinstance(param.default, float) and math.isnan(param.default):
+            return
+        raise ValueError(f"'{param.name}' needs a number, not NaN")
+    if math.isinf(number):
+        raise ValueError(f"'{param.name}' needs a finite number, not {shown}")
+    if param.above is not None and not number > param.above:
+        raise ValueError(f"'{param.name}' must be above {param.above:g}{unit}, not {shown}")
+    if param.minimum is not None and number < param.minimum:
+        raise ValueError(f"'{param.name}' must be at least {param.minimum:g}{unit}, not {shown}")
+    if param.maximum is not None and number > param.maximum:
+        raise ValueError(f"'{param.name}' must be at most {param.maximum:g}{unit}, not {shown}")
+
+
+def _convert(param: Param, value: Any) -> Any:
     types = _types(param)
     if value is None:
         if param.default is None:
@@ -154,22 +181,40 @@ def describe_param(param: Param) -> str:
     unit = f" [{param.unit}]" if param.unit else ""
     default = "required" if param.default is REQUIRED else f"= {param.default!r}"
     choices = f" one of {', '.join(param.choices)}" if param.choices else ""
-    return f"{param.name}: {types}{unit} {default}{choices}" + (f" — {param.doc}" if param.doc else "")
+    limits = [f"> {param.above:g}" if param.above is not None else "",
+              f"≥ {param.minimum:g}" if param.minimum is not None else "",
+              f"≤ {param.maximum:g}" if param.maximum is not None else ""]
+    bounds = f" ({', '.join(x for x in limits if x)})" if any(limits) else ""
+    return f"{param.name}: {types}{unit} {default}{bounds}{choices}" + (f" — {param.doc}" if param.doc else "")
 
 
 # --------------------------------------------------------------------------- JSON Schema
 
 
+def _bounds(param: Param) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    if param.minimum is not None:
+        out["minimum"] = param.minimum
+    if param.maximum is not None:
+        out["maximum"] = param.maximum
+    if param.above is not None:
+        out["exclusiveMinimum"] = param.above
+    return out
+
+
 def _param_schema(param: Param) -> dict[str, Any]:
     alts: list[dict[str, Any]] = []
+    non_negative = (param.minimum is not None and param.minimum >= 0) or (param.above is not None and param.above >= 0)
     for t in _types(param):
         if t is float:
-            alts.append({"type": "number"})
+            alts.append({"type": "number", **_bounds(param)})
             if param.unit:
                 units = "|".join(re.escape(u) for u in UNITS.get(param.unit, {param.unit: 1}))
-                alts.append({"type": "string", "pattern": rf"^\s*[-+]?[0-9.]+(e[-+]?[0-9]+)?\s*({units})\s*$"})
+                sign = "[+]?" if non_negative else "[-+]?"
+                number = r"([0-9]+\.?[0-9]*|\.[0-9]+)([eE][-+]?[0-9]+)?"
+                alts.append({"type": "string", "pattern": rf"^\s*{sign}{number}\s*({units})\s*$"})
         elif t is int:
-            alts.append({"type": "integer"})
+            alts.append({"type": "integer", **_bounds(param)})
         elif t is bool:
             alts.append({"type": "boolean"})
         elif t is str:
@@ -233,7 +278,7 @@ def json_schema() -> dict[str, Any]:
         "properties": {
             "mission": {"type": "string", "description": TOP_KEYS["mission"]},
             "doc": {"type": "string"},
-            "rate": {"type": "number", "exclusiveMinimum": 0, "description": TOP_KEYS["rate"]},
+            "rate": {"type": "number", "minimum": MIN_RATE, "maximum": MAX_RATE, "description": TOP_KEYS["rate"]},
             "services": {"type": "array", "items": service, "description": TOP_KEYS["services"]},
             "params": {"type": "object", "description": TOP_KEYS["params"]},
             "include": {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}]},

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 from pathlib import Path
 
@@ -33,6 +35,19 @@ def shared_worlds() -> Path:
     if not SHARED_WORLDS.is_dir():
         pytest.skip(f"needs the public floor plans in ../shared/worlds (not found at {SHARED_WORLDS})")
     return SHARED_WORLDS
+
+
+def homing_cli(*argv: str) -> tuple[int, str, str]:
+    """(exit status, stdout, stderr) of ``homing ARGV`` run in this process (argparse's exits included)."""
+    from homing.missions.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(list(argv))
+        except SystemExit as done:
+            code = int(done.code or 0)
+    return code, out.getvalue(), err.getvalue()
 
 
 @pytest.fixture

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -26,15 +27,21 @@ def _defaults() -> dict[str, Any]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from homing.missions.commands._args import output_file, plain_text, positive
+
     parser = sub.add_parser(
         "replay", help="replay a run log: landmark SLAM offline (--slam), trajectories and tags (--out PNG)",
-        description=__doc__,
+        description=plain_text(__doc__), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("run", metavar="RUN", help="run log written by 'homing run … --record RUN'")
     parser.add_argument("--slam", action="store_true", help="run landmark SLAM on the log and print the tags")
-    parser.add_argument("--out", metavar="PNG", help="draw odometry, optimised and true trajectories and the tags")
-    parser.add_argument("--until", type=float, metavar="T", help="replay only the first T seconds [s]")
-    parser.add_argument("--json", metavar="PATH", help="write the optimised landmarks and map→odom as JSON")
+    parser.add_argument("--out", metavar="PNG", type=output_file("--out"),
+                        help="draw odometry, optimised and true trajectories and the tags")
+    parser.add_argument("--until", type=positive, metavar="T", help="replay only the first T seconds [s]")
+    parser.add_argument("--json", metavar="PATH", type=output_file("--json"),
+                        help="write the optimised landmarks and map→odom as JSON")
+    parser.add_argument("--salvage", action="store_true",
+                        help="replay a damaged log up to the damage (default: report it and stop)")
     parser.set_defaults(func=run)
 
 
@@ -87,14 +94,16 @@ def run(args: argparse.Namespace) -> int:
 
     from homing.errors import UserError
 
-    log = RunLog(args.run)
+    log = RunLog(args.run, salvage=args.salvage)
     if not (args.slam or args.out or args.json):
         raise UserError("nothing to do: give --slam, --out PNG or --json PATH", args.run)
     slam = replay_slam(log, args.until)
     truth_tags = _true_tags(log.meta)
     world_from_map = world_from_map_frame(log, args.until)
     landmarks = slam.landmarks()
-    if log.truncated:
+    if log.damage:
+        print(f"warning: {args.run}: damaged at {log.damage}: replayed up to {log.end:.1f} s", file=sys.stderr)
+    elif log.truncated:
         print(f"{args.run}: log ends mid-frame (killed run?): replayed up to {log.end:.1f} s")
     if args.slam:
         print(f"{len(slam.keyframes)} keyframes, {len(landmarks)} tags, {slam.n_tag_factors} tag factors; "

@@ -6,6 +6,8 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from homing.missions.commands._args import output_file
+
     parser = sub.add_parser(
         "schema",
         help="write the JSON Schema of the mission language (for editor completion and checking)",
@@ -13,7 +15,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "node and its parameters. With the YAML language server, add to a mission's first line: "
         "# yaml-language-server: $schema=PATH",
     )
-    parser.add_argument("-o", "--output", metavar="PATH", help="write the schema here instead of stdout")
+    parser.add_argument("-o", "--output", metavar="PATH", type=output_file("-o"),
+                        help="write the schema here instead of stdout")
     parser.set_defaults(func=run)
 
 
