@@ -36,6 +36,7 @@ from homing.behaviours.base import (
 )
 from homing.behaviours.keys import (
     CMD_VEL_KEY,
+    EXPLORE_GOAL_KEY,
     GRID_KEY,
     MAP_TO_ODOM_KEY,
     NAVIGATOR_KEY,
@@ -52,7 +53,7 @@ from homing.navigation.planner import distance_map
 from homing.robot import Pose2
 from py_trees.common import Status
 
-GOAL_KEY = "/explore/goal"
+GOAL_KEY = EXPLORE_GOAL_KEY
 DECIDE_PERIOD = 1.0  # [s] adapter time between decisions while driving (strategies replan no faster)
 GOAL_REASONS = ("no_path", "goal_occupied", "bumped")  # the goal's fault (bumped: TooManyBumps near it): blacklist it and go on
 START_PATIENCE = 3.0  # [s] the robot's cell may be blocked on the costmap this long before the leaf fails

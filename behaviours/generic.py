@@ -130,6 +130,35 @@ class SetBlackboard(HomingBehaviour):
         return Status.SUCCESS
 
 
+@register("Increment")
+class Increment(HomingBehaviour):
+    """Add ``by`` to the integer at blackboard ``key`` (0 if unset) and SUCCEED: a counter the mission keeps.
+
+    The persistent mission counts its dock cycles with it (``/mission/cycles``).
+    """
+
+    PARAMS = (
+        Param("key", str, REQUIRED, doc="absolute blackboard key, e.g. /mission/cycles"),
+        Param("by", int, 1, doc="how much to add"),
+    )
+    READS = ("$key",)
+    WRITES = ("$key",)
+
+    def __init__(self, name: str, key: str, by: int = 1):
+        self.key = key
+        super().__init__(name)
+        self.by = int(by)
+
+    def update(self) -> Status:
+        value = self.read(self.key, 0)
+        if not isinstance(value, int) or isinstance(value, bool):
+            self.feedback_message = f"{self.key} holds {value!r}, not an integer"
+            return Status.FAILURE
+        self.write(self.key, value + self.by)
+        self.feedback_message = f"{self.key} = {value + self.by}"
+        return Status.SUCCESS
+
+
 _OPS = {
     "==": operator.eq,
     "!=": operator.ne,

@@ -14,7 +14,7 @@ success), so a recovery branch can test it with ``CheckBlackboard``.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 from homing.behaviours.base import (
     TIMEOUT_PARAM,
@@ -79,7 +79,7 @@ class NavigateToPose(_ReportsFailure):
     ``goal_key``. ``theta`` nan: any final heading.
     """
 
-    PARAMS = (
+    PARAMS: ClassVar[tuple[Param, ...]] = (
         Param("x", float, math.nan, "m", "goal x in map (nan: read goal_key)"),
         Param("y", float, math.nan, "m", "goal y in map"),
         Param("theta", float, math.nan, "rad", "goal heading in map (nan: any)"),
@@ -89,7 +89,7 @@ class NavigateToPose(_ReportsFailure):
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
-    READS = (OBSERVATION_KEY, NAVIGATOR_KEY, GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, "$goal_key")
+    READS: ClassVar[tuple[str, ...]] = (OBSERVATION_KEY, NAVIGATOR_KEY, GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, "$goal_key")
     WRITES = (CMD_VEL_KEY, "$failure_key")
 
     def __init__(self, name: str, x: float = math.nan, y: float = math.nan, theta: float = math.nan,

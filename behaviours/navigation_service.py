@@ -12,8 +12,13 @@ Leaves drive with it (:mod:`homing.behaviours.motion`).
 What the lidar cannot see: the ``keepout`` parameter (and ``/nav/keepout``,
 which starts with it and any leaf may overwrite) lists zones in ``map``
 no path may cross, ``[x, y, r]`` discs and ``[[x, y], …]`` polygons; with
-``dock_keepout`` the dock is one of them when the robot starts on it (the
-charging source says so), placed in front of its first pose in ``map``.
+``dock_keepout`` the dock is one of them once the robot has stood on it (the
+charging source says so), placed in front of its pose in ``map`` then.
+
+Where the dock is: whenever the base reports charge from the dock, the
+robot's pose in ``map`` is the docked pose, written to ``/nav/dock`` (a map
+that has drifted since the last visit is followed). A value already on the
+blackboard when the service starts (a resumed run) is taken as the dock.
 Bumper presses mark the costmap by themselves (:mod:`homing.navigation.layers`).
 """
 
@@ -21,14 +26,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from homing.behaviours.keys import GRID_KEY, MAP_TO_ODOM_KEY, NAVIGATOR_KEY, POSE_KEY
+from homing.behaviours.keys import DOCK_KEY, GRID_KEY, MAP_TO_ODOM_KEY, NAVIGATOR_KEY, POSE_KEY
 from homing.behaviours.registry import Param, register_service
 from homing.navigation.controller import CONTROLLERS
 from homing.navigation.costmap import CostmapParams
 from homing.navigation.layers import Keepout, dock_keepout, parse_keepout
 from homing.navigation.navigator import Navigator
 from homing.navigation.planner import PLANNERS
-from homing.robot import Observation, RobotAdapter
+from homing.robot import Observation, Pose2, RobotAdapter
+from homing.robot.frames import wrap_angle
 from homing.robot.turtlebot import FOOTPRINT_RADIUS
 from py_trees.common import Access
 
@@ -36,6 +42,7 @@ from homing.errors import UserError
 
 GOAL_KEY = "/nav/goal"  # the default goal slot of NavigateToPose: created empty here, set by any leaf
 KEEPOUT_KEY = "/nav/keepout"  # keep-out zones in map: the service's parameter at first, any leaf may set it
+DOCK_MOVED = 0.01  # [m, rad] a docked pose this different from the known one replaces it
 
 
 @register_service(
@@ -53,15 +60,15 @@ KEEPOUT_KEY = "/nav/keepout"  # keep-out zones in map: the service's parameter a
         Param("yaw_tolerance", float, 0.25, "rad", "and this heading error", above=0.0),
         Param("allow_unknown", bool, True, "", "plan through unknown cells"),
         Param("keepout", list, [], "m", "zones in map no path may cross: [x, y, r] discs, [[x, y], ...] polygons"),
-        Param("dock_keepout", bool, True, "", "mark the dock in front of the robot when it starts on it"),
+        Param("dock_keepout", bool, True, "", "keep paths off the dock, placed where the robot charged"),
     ),
-    writes=(NAVIGATOR_KEY, GOAL_KEY, KEEPOUT_KEY),
+    writes=(NAVIGATOR_KEY, GOAL_KEY, KEEPOUT_KEY, DOCK_KEY),
 )
 class NavigationService:
     """Costmap, global planner and local controller, chosen by name; writes ``/nav/navigator``."""
 
     name = "navigation"
-    writes = (NAVIGATOR_KEY, GOAL_KEY, KEEPOUT_KEY)
+    writes = (NAVIGATOR_KEY, GOAL_KEY, KEEPOUT_KEY, DOCK_KEY)
     reads = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY)
 
     def __init__(self, planner: str = "fmm", controller: str = "rpp", footprint_radius: float = FOOTPRINT_RADIUS,
@@ -83,7 +90,7 @@ class NavigationService:
             raise UserError(f"navigation service: {err}") from None
         self.dock_keepout = dock_keepout
         self.dock_zone: Keepout | None = None
-        self._first_update = True
+        self.dock: Pose2 | None = None
 
     def setup(self, robot: RobotAdapter, blackboard: Any) -> None:
         self.bb = blackboard
@@ -92,18 +99,24 @@ class NavigationService:
         blackboard.set(NAVIGATOR_KEY, self.navigator, overwrite=True)
         blackboard.set(GOAL_KEY, None, overwrite=False)
         blackboard.set(KEEPOUT_KEY, list(self.keepout), overwrite=False)
+        blackboard.set(DOCK_KEY, None, overwrite=False)
+        self._set_dock(blackboard.get(DOCK_KEY))
 
     def update(self, obs: Observation) -> None:
         """Refresh the costmap (cheap when neither the grid nor the scan changed)."""
         grid, pose = self._get(GRID_KEY), self._get(POSE_KEY)
-        if pose is not None and self._first_update:
-            self._first_update = False
-            if self.dock_keepout and obs.battery.on_dock:
-                self.dock_zone = dock_keepout(pose)  # the robot sits on the dock, facing it
+        if pose is not None and obs.battery.on_dock and (self.dock is None or self.dock.distance_to(pose) > DOCK_MOVED
+                                                         or abs(wrap_angle(self.dock.theta - pose.theta)) > DOCK_MOVED):
+            self._set_dock(pose)  # the robot sits on the dock, facing it
+            self.bb.set(DOCK_KEY, pose, overwrite=True)
         zones = parse_keepout(self._get(KEEPOUT_KEY))
         self.navigator.set_keepout([*zones, self.dock_zone] if self.dock_zone is not None else zones)
         if grid is not None and pose is not None:
             self.navigator.update_costmap(obs, grid, pose, self._get(MAP_TO_ODOM_KEY))
+
+    def _set_dock(self, pose: Pose2 | None) -> None:
+        self.dock = pose
+        self.dock_zone = dock_keepout(pose) if pose is not None and self.dock_keepout else None
 
     def shutdown(self) -> None:
         self.navigator.cancel()

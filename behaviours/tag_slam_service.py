@@ -18,6 +18,16 @@ and writes the results:
 
 Run it after ``grid_slam`` in a mission's ``services`` list when both are
 present: its map keys then override grid_slam's.
+
+With ``grid: false`` it maps the tags only, in the frame of the mapper
+before it (``grid_slam``, which keeps the grid and the pose): its keyframes
+are tied to that mapper's pose (``matched``), and it writes only
+``/perception/tags`` and ``/slam/landmarks``. It then works in **sessions**,
+for a robot that lives for days: whenever the robot docks (the charger
+reports the dock), the graph of the trip is folded into priors on the tags
+(their marginals) and a new graph starts from them, so memory and update
+cost stay bounded by one trip, not the robot's lifetime. The tags' estimates
+(:meth:`TagSlamService.landmark_estimates`) are what a run directory keeps.
 """
 
 from __future__ import annotations
@@ -48,6 +58,7 @@ TOUR_GOAL_KEY = "/tag_tour/goal"
         Param("robust", str, "cauchy", "", "M-estimator on tag factors", choices=("cauchy", "huber", "none")),
         Param("max_range", float, 3.0, "m", "tags farther than this are ignored", above=0.0),
         Param("resolution", float, 0.05, "m", "cell size of the rebuilt occupancy grid", minimum=0.01, maximum=1.0),
+        Param("grid", bool, True, "", "own the grid and the pose (false: map the tags in grid_slam's frame, per trip)"),
     ),
     writes=(TAGS_KEY, LANDMARKS_KEY, MAP_TO_ODOM_KEY, POSE_KEY, GRID_KEY),
 )
@@ -59,17 +70,21 @@ class TagSlamService:
 
     def __init__(self, tag_size: float = 0.16, dock_tag: int = 0, keyframe_distance: float = 0.25,
                  keyframe_angle: float = 0.35, robust: str = "cauchy", max_range: float = 3.0,
-                 resolution: float = 0.05) -> None:
+                 resolution: float = 0.05, grid: bool = True) -> None:
         from homing.mapping.landmark_slam import LandmarkSlam, SlamConfig
         from homing.perception.apriltag import TagDetector, TagFilter
         from homing.perception.tag_wall import TagPerception
 
         self.detector = TagDetector(tag_size=tag_size, filt=TagFilter(max_range=max_range))
         self.perception = TagPerception(self.detector)
-        self.slam = LandmarkSlam(SlamConfig(
+        self.config = SlamConfig(
             keyframe_distance=keyframe_distance, keyframe_angle=keyframe_angle, robust=robust,
-            anchor_tag=None if dock_tag < 0 else dock_tag,
-        ))
+            anchor_tag=None if dock_tag < 0 or not grid else dock_tag,
+        )
+        self.slam = LandmarkSlam(self.config)
+        self.owns_grid = grid
+        self.sessions = 1
+        self._was_docked = False
         self.resolution = resolution
         self.bb: Any = None
         self.robot: RobotAdapter | None = None
@@ -88,6 +103,9 @@ class TagSlamService:
     def update(self, obs: Observation) -> None:
         """Detect, update SLAM and write the blackboard (bounded work: one iSAM2 update per keyframe)."""
         tags = self.perception.measure(obs)
+        if not self.owns_grid:
+            self._update_tags_only(obs, tags)
+            return
         added = self.slam.update(obs.stamp, obs.odom.pose, obs.scan, tags)
         if added:
             self._draw_latest()
@@ -97,6 +115,38 @@ class TagSlamService:
         self.bb.set(MAP_TO_ODOM_KEY, self.slam.map_to_odom, overwrite=True)
         self.bb.set(POSE_KEY, self.slam.pose(obs.odom.pose), overwrite=True)
         self.bb.set(GRID_KEY, self._grid, overwrite=True)
+
+    def _update_tags_only(self, obs: Observation, tags: list[Any]) -> None:
+        pose, map_to_odom = self._get(POSE_KEY), self._get(MAP_TO_ODOM_KEY)
+        docked = obs.battery.on_dock
+        if docked and not self._was_docked and self.slam.keyframes:
+            self.new_session(map_to_odom)
+        self._was_docked = docked
+        if not self.slam.keyframes and map_to_odom is not None:
+            self.slam.set_start_frame(map_to_odom)  # the first keyframe starts where the grid's mapper has it
+        self.slam.update(obs.stamp, obs.odom.pose, obs.scan, tags, matched=pose)
+        self.bb.set(TAGS_KEY, tags, overwrite=True)
+        self.bb.set(LANDMARKS_KEY, self.slam.landmarks(), overwrite=True)
+
+    def landmark_estimates(self) -> dict[int, tuple[Pose2, Any]]:
+        """Tag id → (pose in map, (3, 3) marginal covariance): the state a run directory keeps."""
+        self.slam.flush()
+        return self.slam.landmark_estimates()
+
+    def new_session(self, map_to_odom: Pose2 | None = None,
+                    priors: dict[int, tuple[Pose2, Any]] | None = None) -> None:
+        """Fold the trip's graph into priors on the tags (or take ``priors``) and start a new graph from them."""
+        from homing.mapping.landmark_slam import LandmarkSlam
+
+        known = self.landmark_estimates() if priors is None else priors
+        self.slam = LandmarkSlam(self.config, map_to_odom=map_to_odom, landmark_priors=known)
+        self.sessions += 1
+
+    def _get(self, key: str) -> Any:
+        try:
+            return self.bb.get(key)
+        except KeyError:
+            return None
 
     def _draw_latest(self) -> None:
         kf = self.slam.keyframes[-1]

@@ -31,7 +31,10 @@ same seed), then the median is reported.
 
 Worlds default to the bundled ``lab`` and the six public floor plans when
 found (``$HOMING_WORLDS``, or ``shared/worlds`` beside the working directory or
-its parent). Runs go to ``--workers`` processes.
+its parent). Runs go to ``--workers`` processes, or to
+a Ray cluster with ``--engine ray [--address ADDR]``
+(:mod:`homing.benchmarks.engine`: the same JSON for the same seeds; a run
+that fails is listed with its seed under ``failed``).
 """
 
 from __future__ import annotations
@@ -41,12 +44,17 @@ import math
 import os
 import statistics
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from homing.benchmarks.common import find_plans, print_table, write_json
+from homing.benchmarks.common import find_plans, print_table, progress_bar, write_json
+from homing.benchmarks.engine import (
+    add_engine_arguments,
+    engine_from_args,
+    failures_table,
+    run_jobs,
+)
 from homing.robot import Pose2
 
 STRATEGY_ORDER = ("nearest", "largest_closest", "largest_random", "largest_random_raw", "explore_lite", "gain_rate",
@@ -251,7 +259,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"frontier strategies (default: all: {', '.join(STRATEGY_ORDER)})")
     parser.add_argument("--seeds", type=count, default=5, help="seeds per world and strategy (0..N-1)")
     parser.add_argument("--minutes", type=positive, default=30.0, help="simulated minutes per run (thesis: 30)")
-    parser.add_argument("--workers", type=count, default=max(1, (os.cpu_count() or 1) - 1), help="worker processes")
+    add_engine_arguments(parser)
     parser.add_argument("--runs-json", metavar="PATH", type=output_file("--runs-json"),
                         help="also write every run's figures to PATH")
     parser.add_argument("--from-runs", nargs="+", metavar="PATH",
@@ -263,13 +271,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from homing.mapping.strategies import STRATEGIES
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from homing.errors import UserError
 
     bad = [s for s in args.strategies if s not in STRATEGIES]
     if bad:
         raise UserError(f"unknown strategy {', '.join(bad)} (known: {', '.join(sorted(STRATEGIES))})")
+    engine = engine_from_args(args)
     worlds = world_specs(args.worlds)
     for w in worlds:
         from homing.sim.world import resolve
@@ -285,22 +293,11 @@ def run(args: argparse.Namespace) -> int:
         results = load_runs(args.from_runs, args.strategies, [world_label(w) for w in worlds] if args.worlds else None)
         args.seeds = len({r.seed for r in results})
         jobs = []
-    with Progress(TextColumn("[bold]explore"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  TextColumn("{task.description}")) as progress:
-        task = progress.add_task("", total=len(jobs))
-        if args.workers == 1:
-            for job in jobs:
-                results.append(_job(job))
-                progress.update(task, advance=1, description=_describe(results[-1]))
-        else:
-            import multiprocessing
-
-            ctx = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx) as pool:
-                futures = [pool.submit(_job, job) for job in jobs]
-                for fut in as_completed(futures):
-                    results.append(fut.result())
-                    progress.update(task, advance=1, description=_describe(results[-1]))
+    with progress_bar("explore", len(jobs)) as advance:
+        outcomes = run_jobs(_job, jobs, engine, lambda o: advance(_describe(o.result) if o.ok else
+                                                                   f"{_job_label(o.job)}: failed"))
+    results += [o.result for o in outcomes if o.ok]
+    failed = failures_table(outcomes)
     results.sort(key=lambda r: (r.world, STRATEGY_ORDER.index(r.strategy) if r.strategy in STRATEGY_ORDER else 99, r.seed))
     summary = summarise(results)
     rows = []
@@ -321,7 +318,9 @@ def run(args: argparse.Namespace) -> int:
          "×nearest", "×explore_lite"],
         rows,
     )  # fmt: skip
-    write_json(args.json, summary)
+    for f in failed:
+        print(f"failed: {_job_label(tuple(f['job']))}: {f['error']}")
+    write_json(args.json, {**summary, "failed": failed} if failed else summary)
     if args.runs_json:
         write_json(args.runs_json, {"runs": [asdict(r) for r in results]})
     return 0
@@ -342,6 +341,10 @@ def load_runs(paths: list[str], strategies: list[str], worlds: list[str] | None)
         out += [RunResult(**r) for r in runs
                 if r["strategy"] in strategies and (worlds is None or r["world"] in worlds)]
     return out
+
+
+def _job_label(job: tuple[Any, ...]) -> str:
+    return f"{world_label(job[0])} {job[1]} seed {job[2]}"
 
 
 def _describe(r: RunResult) -> str:

@@ -157,7 +157,8 @@ class OccupancyGrid:
         sensor = pose.compose(scan.laser_pose)
         ranges = np.asarray(scan.ranges, dtype=float)
         hit = scan.valid()
-        clear = _clear_lengths(ranges, hit, scan.range_max)
+        wraps = abs(abs(scan.angle_increment) * len(ranges) - 2 * math.pi) < 2 * abs(scan.angle_increment)
+        clear = _clear_lengths(ranges, hit, scan.range_max, wraps)
         angles = scan.angles + sensor.theta
         self.integrate_rays(np.array([sensor.x, sensor.y]), angles, clear, hit)
 
@@ -212,16 +213,22 @@ class OccupancyGrid:
         self.version += 1
 
 
-def _clear_lengths(ranges: np.ndarray, hit: np.ndarray, range_max: float) -> np.ndarray:
-    """(N,) how far each ray clears [m]: its range if it returned, else bounded by its neighbours' returns."""
+def _clear_lengths(ranges: np.ndarray, hit: np.ndarray, range_max: float, wraps: bool = True) -> np.ndarray:
+    """(N,) how far each ray clears [m]: its range if it returned, else bounded by its neighbours' returns.
+
+    ``wraps``: the scan covers the full circle, so its first and last rays are neighbours (a 180° scan's are not).
+    """
     out = np.where(hit, ranges, np.inf)
     n = len(ranges)
     if n == 0:
         return out
+    k_max = NO_RETURN_NEIGHBOURS
+    padded = np.concatenate([out[-k_max:], out, out[:k_max]]) if wraps and n > k_max else \
+        np.concatenate([np.full(k_max, np.inf), out, np.full(k_max, np.inf)])
     neighbour_min = np.full(n, np.inf)
-    for k in range(1, NO_RETURN_NEIGHBOURS + 1):
-        neighbour_min = np.minimum(neighbour_min, np.roll(out, k))
-        neighbour_min = np.minimum(neighbour_min, np.roll(out, -k))
+    for k in range(1, k_max + 1):
+        neighbour_min = np.minimum(neighbour_min, padded[k_max - k: k_max - k + n])
+        neighbour_min = np.minimum(neighbour_min, padded[k_max + k: k_max + k + n])
     # A no-return ray among returns clears to just short of the nearest neighbouring return.
     bounded = np.where(np.isfinite(neighbour_min), 0.9 * neighbour_min, range_max)
     return np.where(hit, ranges, np.minimum(bounded, range_max))

@@ -16,15 +16,14 @@ landmark SLAM is running and rebuilding the grid: that one owns the grid
 
 from __future__ import annotations
 
-import bisect
 import math
-from collections import deque
 
 import numpy as np
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.scan_match import CorrelativeMatcher, ScanMatcher
 from homing.robot import Odometry, Pose2, Scan
 from homing.robot.frames import wrap_angle
+from homing.robot.history import PoseHistory
 
 HISTORY = 2.0  # [s] of odometry kept to look up the pose at a scan's stamp
 MIN_MATCH_TRAVEL = 0.0  # [m] match every scan (cheap); raise to skip matching when standing still
@@ -60,6 +59,8 @@ class GridSlam:
         matcher: ScanMatcher | None = None,
         use_matcher: bool = True,
         grid: OccupancyGrid | None = None,
+        max_correction: tuple[float, float] = (MAX_CORRECTION_XY, MAX_CORRECTION_THETA),
+        match_range: float | None = None,
     ) -> None:
         self.grid = grid if grid is not None else OccupancyGrid(resolution)
         self.matcher: ScanMatcher | None = (
@@ -68,47 +69,28 @@ class GridSlam:
             if use_matcher
             else None
         )
+        self.max_correction = max_correction  # [m, rad] a larger jump from the prediction is a false match
+        self.match_range = match_range  # [m] end points matched (None: the scan's range_max − MATCH_RANGE_MARGIN)
         self.map_to_odom = Pose2()
         self.pose = Pose2()
+        self.scan_pose = Pose2()  # base_link in map where the last scan was fused
         self.scans_fused = 0
         self.matches_rejected = 0
         self.last_score = float("nan")
         self._last_scan_stamp = -math.inf
-        self._odom: deque[tuple[float, Pose2]] = deque()
+        self._odom = PoseHistory(HISTORY)
 
     # ----------------------------------------------------------------- inputs
     def update(self, odom: Odometry, scan: Scan | None) -> bool:
         """Feed one observation's odometry and latest scan; returns True if a new scan was fused."""
-        self._remember(odom)
+        self._odom.add(odom.stamp, odom.pose)
         fused = False
         if scan is not None and scan.stamp > self._last_scan_stamp:
             self._last_scan_stamp = scan.stamp
-            self._fuse(scan, self._odom_at(scan.stamp))
+            self._fuse(scan, self._odom.at(scan.stamp))
             fused = True
         self.pose = self.map_to_odom.compose(odom.pose)
         return fused
-
-    def _remember(self, odom: Odometry) -> None:
-        if self._odom and odom.stamp <= self._odom[-1][0]:
-            if odom.stamp == self._odom[-1][0]:
-                return
-            self._odom.clear()  # time went backwards: a new run
-        self._odom.append((odom.stamp, odom.pose))
-        while len(self._odom) > 2 and self._odom[0][0] < odom.stamp - HISTORY:
-            self._odom.popleft()
-
-    def _odom_at(self, stamp: float) -> Pose2:
-        """Odometry pose at ``stamp`` [s], linearly interpolated; clamped to the history's ends."""
-        stamps = [s for s, _ in self._odom]
-        i = bisect.bisect_left(stamps, stamp)
-        if i <= 0:
-            return self._odom[0][1]
-        if i >= len(stamps):
-            return self._odom[-1][1]
-        (s0, p0), (s1, p1) = self._odom[i - 1], self._odom[i]
-        a = (stamp - s0) / (s1 - s0) if s1 > s0 else 1.0
-        d = p0.between(p1)
-        return p0.compose(Pose2(a * d.x, a * d.y, a * d.theta))
 
     # ------------------------------------------------------------------ core
     def _fuse(self, scan: Scan, odom_pose: Pose2) -> None:
@@ -116,19 +98,20 @@ class GridSlam:
         corrected = predicted
         if self.matcher is not None and self.scans_fused >= WARMUP_SCANS:
             points = scan.points()
-            max_range = scan.range_max - MATCH_RANGE_MARGIN
+            max_range = scan.range_max - MATCH_RANGE_MARGIN if self.match_range is None else self.match_range
             result = self.matcher.match(self.grid, points, predicted, max_range)
             self.last_score = result.score
             jump = predicted.between(result.pose)
             plausible = (
-                math.hypot(jump.x, jump.y) <= MAX_CORRECTION_XY
-                and abs(wrap_angle(jump.theta)) <= MAX_CORRECTION_THETA
+                math.hypot(jump.x, jump.y) <= self.max_correction[0]
+                and abs(wrap_angle(jump.theta)) <= self.max_correction[1]
             )
             if result.ok and plausible:
                 corrected = result.pose
             else:
                 self.matches_rejected += 1
         self.map_to_odom = corrected.compose(odom_pose.inverse())
+        self.scan_pose = corrected
         self.grid.integrate(scan, corrected)
         self.scans_fused += 1
 

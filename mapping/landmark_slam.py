@@ -60,6 +60,7 @@ import numpy as np
 from homing.mapping import scan_closure
 from homing.perception.apriltag import TagMeasurement
 from homing.robot.frames import wrap_angle
+from homing.robot.history import interpolate_pose
 from homing.robot.turtlebot import (
     GYRO_BIAS_SIGMA,
     GYRO_NOISE,
@@ -190,26 +191,6 @@ def rotate_covariance(cov: np.ndarray, angle: float) -> np.ndarray:
     return R @ cov @ R.T
 
 
-def interpolate_pose(history: Iterable[tuple[float, Pose2]], stamp: float) -> Pose2:
-    """Odometry pose at ``stamp`` [s], linear between the two bracketing samples of ``history``.
-
-    ``history`` is ordered by stamp; outside its span the nearest end is used.
-    """
-    items = list(history)
-    if not items:
-        raise ValueError("no odometry yet")
-    if stamp <= items[0][0]:
-        return items[0][1]
-    for (t0, p0), (t1, p1) in zip(items, items[1:], strict=False):
-        if t0 <= stamp <= t1:
-            a = 0.0 if t1 <= t0 else (stamp - t0) / (t1 - t0)
-            return Pose2(
-                p0.x + a * (p1.x - p0.x), p0.y + a * (p1.y - p0.y),
-                wrap_angle(p0.theta + a * wrap_angle(p1.theta - p0.theta)),
-            )
-    return items[-1][1]
-
-
 class LandmarkSlam:
     """Incremental keyframe + tag-landmark SLAM (iSAM2). Feed it with :meth:`update` every tick.
 
@@ -218,7 +199,11 @@ class LandmarkSlam:
     bit for bit, which is what makes offline replay equal the online run.
     """
 
-    def __init__(self, config: SlamConfig | None = None) -> None:
+    def __init__(self, config: SlamConfig | None = None, map_to_odom: Pose2 | None = None,
+                 landmark_priors: dict[int, tuple[Pose2, np.ndarray]] | None = None) -> None:
+        """``map_to_odom``: where ``map`` lies from ``odom`` at the start (another mapper's frame to estimate in);
+        ``landmark_priors``: tag id → (pose in ``map``, (3, 3) covariance in the tag's frame) from an
+        earlier session (:meth:`landmark_estimates`), so a new session starts from what is known."""
         self.cfg = config or SlamConfig()
         if self.cfg.robust not in ("huber", "cauchy", "none"):
             raise ValueError(f"unknown robust kernel '{self.cfg.robust}'")
@@ -242,7 +227,8 @@ class LandmarkSlam:
         self._turn = 0.0  # [rad] absolute odometry turn since the last keyframe
         self._latest_map_pose = Pose2()
         self._landmarks: dict[int, Pose2] = {}
-        self._map_to_odom = Pose2()
+        self._map_to_odom = map_to_odom or Pose2()
+        self._priors = dict(landmark_priors or {})
         self._guesses: list[Pose2] = []  # each keyframe's map pose as estimated when it was added
         self._guess_xy = np.zeros((0, 2))  # [m] their positions, for the closure search
         self._references: dict[int, scan_closure.Reference] = {}  # keyframe index → its scan ready for matching
@@ -290,6 +276,12 @@ class LandmarkSlam:
             self._add_sighting(m)
         return added
 
+    def set_start_frame(self, map_to_odom: Pose2) -> None:
+        """Before the first update: the first keyframe's prior is ``map_to_odom ∘ odom`` (another mapper's frame)."""
+        if self.keyframes:
+            raise RuntimeError("the graph has started: its frame is fixed")
+        self._map_to_odom = map_to_odom
+
     def flush(self) -> None:
         """Commit sightings waiting on the current keyframe without a new one (e.g. at a run's end)."""
         if self.keyframes and (self._pending or self._closures):
@@ -303,6 +295,12 @@ class LandmarkSlam:
         start = self._map_to_odom.compose(odom)
         graph.add(gtsam.PriorFactorPose2(X(0), to_gtsam(start), gtsam.noiseModel.Diagonal.Sigmas(np.array(FIRST_POSE_SIGMA))))
         values.insert(X(0), to_gtsam(start))
+        for tag_id in sorted(self._priors):
+            pose, cov = self._priors[tag_id]
+            graph.add(gtsam.PriorFactorPose2(L(tag_id), to_gtsam(pose), gtsam.noiseModel.Gaussian.Covariance(cov)))
+            values.insert(L(tag_id), to_gtsam(pose))
+            self._landmarks[tag_id] = pose
+            self.landmark_ids.append(tag_id)
         self._run(graph, values)
 
     def _attach_scan(self, scan: Scan | None) -> None:
@@ -426,6 +424,10 @@ class LandmarkSlam:
         """Every keyframe's optimised pose in ``map`` (reads the whole estimate: O(n), not every tick)."""
         est = self.isam.calculateEstimate()
         return [from_gtsam(est.atPose2(X(k.index))) for k in self.keyframes]
+
+    def landmark_estimates(self) -> dict[int, tuple[Pose2, np.ndarray]]:
+        """Tag id → (pose in ``map``, (3, 3) marginal covariance): what a next session starts from (costly)."""
+        return {i: (p, self.landmark_covariance(i)) for i, p in self._landmarks.items()}
 
     def landmark_covariance(self, tag_id: int) -> np.ndarray:
         """(3, 3) marginal covariance of tag ``tag_id`` in its own frame (costly: for reports, not ticks)."""

@@ -86,12 +86,16 @@ def reference(points: np.ndarray) -> Reference:
     return Reference(points, v[:, :, 0], flat < MAX_FLATNESS, tree)
 
 
-def match(ref: Reference, points: np.ndarray, guess: Pose2, position: bool = True) -> Match | None:
+def match(ref: Reference, points: np.ndarray, guess: Pose2, position: bool = True,
+          max_rms: float = MAX_RMS, gates: tuple[float, ...] = GATES, min_overlap: float = MIN_OVERLAP) -> Match | None:
     """Pose of the frame of ``points`` (M, 2) [m] in ``ref``'s frame, starting from ``guess``; None if it fails.
 
     Gauss–Newton on point-to-line distances with Huber weights, the
-    correspondence gate shrinking from 0.5 to 0.1 m. Fails on too few pairs,
-    too little overlap or a residual above ``MAX_RMS``. ``position`` False:
+    correspondence gate shrinking through ``gates`` [m] (0.5 to 0.1 m: scans
+    sampled densely, as the RPLIDAR's indoors; a sparser scan's points lie
+    farther apart along a wall and need a wider last gate). Fails on too
+    few pairs, an overlap under ``min_overlap`` or a residual above
+    ``max_rms`` [m]. ``position`` False:
     the covariance frees both position axes (a heading-only closure).
     """
     if len(ref.points) < MIN_PAIRS or len(points) < MIN_PAIRS:
@@ -99,7 +103,7 @@ def match(ref: Reference, points: np.ndarray, guess: Pose2, position: bool = Tru
     x = np.array([guess.x, guess.y, guess.theta])
     last = len(ref.points) - 1
     for it in range(MAX_ITERATIONS):
-        gate = GATES[min(it // GATE_ITERATIONS, len(GATES) - 1)]
+        gate = gates[min(it // GATE_ITERATIONS, len(gates) - 1)]
         c, s = math.cos(x[2]), math.sin(x[2])
         moved = points @ np.array([[c, s], [-s, c]]) + x[:2]
         dist, j = ref.tree.query(moved, distance_upper_bound=gate)
@@ -118,9 +122,30 @@ def match(ref: Reference, points: np.ndarray, guess: Pose2, position: bool = Tru
             break
     rms = float(np.sqrt(np.mean(r**2)))
     overlap = float(ok.mean())
-    if rms > MAX_RMS or overlap < MIN_OVERLAP:
+    if rms > max_rms or overlap < min_overlap:
         return None
     return Match(Pose2(float(x[0]), float(x[1]), float(x[2])), covariance(J, rms, position), rms, overlap)
+
+
+def covariance_at(ref: Reference, points: np.ndarray, pose: Pose2, gate: float = GATES[-1]) -> np.ndarray | None:
+    """(3, 3) covariance of ``pose`` (the frame of ``points`` (M, 2) [m] in ``ref``'s) as :func:`covariance` gives it.
+
+    For a pose found by another matcher (the correlative search): the
+    point-to-line Jacobian at ``pose`` alone, pairs within ``gate`` [m];
+    None with fewer than ``MIN_PAIRS`` pairs.
+    """
+    c, s = math.cos(pose.theta), math.sin(pose.theta)
+    moved = points @ np.array([[c, s], [-s, c]]) + np.array([pose.x, pose.y])
+    dist, j = ref.tree.query(moved, distance_upper_bound=gate)
+    ok = np.isfinite(dist)
+    ok[ok] = ref.on_line[np.minimum(j[ok], len(ref.points) - 1)]
+    if ok.sum() < MIN_PAIRS:
+        return None
+    n, p = ref.normals[j[ok]], points[ok]
+    r = np.einsum("ij,ij->i", n, moved[ok] - ref.points[j[ok]])
+    d_theta = np.column_stack([-s * p[:, 0] - c * p[:, 1], c * p[:, 0] - s * p[:, 1]])
+    J = np.column_stack([n, np.einsum("ij,ij->i", n, d_theta)])
+    return covariance(J, float(np.sqrt(np.mean(r**2))))
 
 
 def covariance(J: np.ndarray, rms: float, position: bool = True) -> np.ndarray:

@@ -54,6 +54,7 @@ from homing.robot.types import (
     IR,
     BatteryState,
     Bumpers,
+    CameraImage,
     ChargingSource,
     ChargingState,
     DockIR,
@@ -71,6 +72,7 @@ MAGIC = b"HOMINGLOG 1\n"
 VERSION = 1
 FLUSH_PERIOD = 1.0  # [s] longest a record waits in memory (adapter or wall time)
 MAX_FRAME = 256 * 2**20  # [bytes] no writer writes a bigger frame (one second of a run is ~100 kB): beyond, damage
+JPEG_QUALITY = 85  # camera images in the log (``Recorder(images=True)``)
 _FRAME = struct.Struct("<II")  # payload length, CRC-32
 _MAGIC_LINE = re.compile(rb"HOMINGLOG (\d{1,9})\n")
 
@@ -100,7 +102,13 @@ SCHEMA: dict[str, dict[str, str]] = {
     "cmd": {"t": "stamp [s]", "v": "forward speed sent [m/s]", "w": "yaw rate sent [rad/s]"},
     "status": {"t": "stamp [s]", "node": "tree node name", "s": "new status (SUCCESS/FAILURE/RUNNING/INVALID)"},
     "truth": {"t": "stamp [s]", "pose": "[x m, y m, theta rad] true base_link in the world (simulator only)"},
+    "ref": {"t": "stamp [s]", "pose": "[x m, y m, theta rad] an imported log's own corrected base_link pose"
+            " (e.g. a corrected CARMEN log's): a reference trajectory, not ground truth"},
     "event": {"t": "stamp [s]", "what": "free text", "data": "any JSON"},
+    "plan": {"t": "stamp [s] of the tick it changed at", "path": "navigator's planned path [[x m, y m], …] in map, or null",
+             "goal": "exploration goal [x m, y m, theta rad] in map, or null"},
+    "img": {"t": "image stamp [s]", "jpeg": "base64 JPEG of the camera image",
+            "K": "[fx, fy, cx, cy] pixels", "size": "[width, height] pixels"},
 }
 
 
@@ -187,7 +195,11 @@ _FIELDS: dict[str, dict[str, Any]] = {  # what each field of a record must be, p
     "status": {"node": lambda v: isinstance(v, str), "s": lambda v: isinstance(v, str)},
     "truth": {"pose": lambda v: _numbers(v, 3)},
     "event": {"what": lambda v: isinstance(v, str), "data": lambda v: True},
-}
+    "ref": {"pose": lambda v: _numbers(v, 3)},
+    "plan": {"path": lambda v: v is None or (isinstance(v, list) and all(_numbers(q, 2) for q in v)),
+             "goal": lambda v: v is None or _numbers(v, 3)},
+    "img": {"jpeg": lambda v: isinstance(v, str), "K": lambda v: _numbers(v, 4), "size": lambda v: _numbers(v, 2)},
+}  # a kind not listed here (a later addition) is kept unchecked: readers pick the kinds they know
 
 
 def _check_header(frame: Any) -> str:
@@ -203,13 +215,32 @@ def _check_records(frame: Any) -> str:
         return "no 'records' list"
     for i, r in enumerate(records):
         kind = r.get("k") if isinstance(r, dict) else None
-        fields = _FIELDS.get(kind) if isinstance(kind, str) else None
-        if fields is None or not _number(r.get("t")):
-            return f"record {i} has no known kind and stamp"
+        if not isinstance(kind, str) or not _number(r.get("t")):
+            return f"record {i} has no kind and stamp"
+        fields = _FIELDS.get(kind, {})
         for name, ok in fields.items():
             if name not in r or not ok(r[name]):
                 return f"record {i} ({kind}) has a bad '{name}'"
     return ""
+
+
+def scan_record(scan: Scan) -> dict[str, Any]:
+    """A ``scan`` record of :data:`SCHEMA` holding ``scan`` exactly (ranges as float32)."""
+    lp = scan.laser_pose
+    return {"k": "scan", "t": scan.stamp, "amin": scan.angle_min, "ainc": scan.angle_increment,
+            "rmin": scan.range_min, "rmax": scan.range_max, "lp": [lp.x, lp.y, lp.theta], "r": _f32_b64(scan.ranges)}
+
+
+def odometry_record(stamp: float, odom: Odometry, scan_t: float | None = None) -> dict[str, Any]:
+    """An ``obs`` record of a robot that reports odometry (and a scan at ``scan_t``) and nothing else.
+
+    Bumpers released, no dock IR, no battery: what an imported log (a
+    CARMEN log, a ROS bag) tells of a tick.
+    """
+    return {"k": "obs", "t": float(stamp),
+            "odom": [odom.stamp, odom.pose.x, odom.pose.y, odom.pose.theta, odom.twist.v, odom.twist.omega],
+            "bump": [False, False, False], "ir": [0, 0, 0], "bat": None, "cbat": None,
+            "scan_t": scan_t, "img_t": None}
 
 
 class Recorder:
@@ -220,7 +251,7 @@ class Recorder:
     """
 
     def __init__(self, path: str | Path, meta: Mapping[str, Any] | None = None,
-                 flush_period: float = FLUSH_PERIOD, fsync: bool = True) -> None:
+                 flush_period: float = FLUSH_PERIOD, fsync: bool = True, images: bool = False) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.flush_period = float(flush_period)
@@ -232,6 +263,9 @@ class Recorder:
         self._buf_t0: float | None = None
         self._wall0 = time.monotonic()
         self._last_scan_t: float | None = None
+        self.images = images  # also log camera images (JPEG)
+        self._last_image_t: float | None = None
+        self._last_plan: Any = (None, None)
         self._ticked = False  # an observation was recorded: frames break at tick starts only
         self._in_tick = False  # the previous record was a scan or an observation
 
@@ -242,10 +276,7 @@ class Recorder:
         scan = obs.scan
         if scan is not None and scan.stamp != self._last_scan_t:
             self._last_scan_t = scan.stamp
-            lp = scan.laser_pose
-            self._add({"k": "scan", "t": scan.stamp, "amin": scan.angle_min, "ainc": scan.angle_increment,
-                       "rmin": scan.range_min, "rmax": scan.range_max, "lp": [lp.x, lp.y, lp.theta],
-                       "r": _f32_b64(scan.ranges)})
+            self._add(scan_record(scan))
         o = obs.odom
         self._add({
             "k": "obs", "t": obs.stamp,
@@ -261,6 +292,31 @@ class Recorder:
         """The tag sightings fed to SLAM at the tick ``stamp`` [s] (nothing if empty)."""
         if tags:
             self._add({"k": "tags", "t": float(stamp), "m": [encode_tag(m) for m in tags]})
+
+    def record_plan(self, stamp: float, path: np.ndarray | None, goal: Pose2 | None) -> None:
+        """The navigator's path ((N, 2) [m], map) and the exploration goal, when either changed since the last call."""
+        key = (None if path is None else np.asarray(path, dtype=float).round(4).tobytes(),
+               None if goal is None else (goal.x, goal.y, goal.theta))
+        if key == self._last_plan:
+            return
+        self._last_plan = key
+        self._add({"k": "plan", "t": float(stamp),
+                   "path": None if path is None else np.asarray(path, dtype=float).round(4).tolist(),
+                   "goal": None if goal is None else [goal.x, goal.y, goal.theta]})
+
+    def record_image(self, image: CameraImage | None) -> None:
+        """A new camera image, as JPEG (only with ``images=True``: a run's images are large)."""
+        if not self.images or image is None or image.stamp == self._last_image_t:
+            return
+        import cv2
+
+        self._last_image_t = image.stamp
+        pixels = image.image if image.image.ndim == 2 else image.image[..., ::-1]  # OpenCV writes BGR
+        ok, jpeg = cv2.imencode(".jpg", pixels, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+        if ok:
+            i = image.info
+            self._add({"k": "img", "t": image.stamp, "jpeg": base64.b64encode(jpeg.tobytes()).decode("ascii"),
+                       "K": [i.fx, i.fy, i.cx, i.cy], "size": [i.width, i.height]})
 
     def record_command(self, stamp: float, twist: Twist2) -> None:
         """The velocity command sent at ``stamp`` [s]."""
@@ -342,7 +398,9 @@ class RunLog:
     there, CRC wrong; an impossible length; a record that does not fit the
     schema) raises :class:`UserError` naming its byte offset, unless
     ``salvage`` is set: then reading stops before it and ``damage`` holds
-    the report.
+    the report. ``warnings`` lists what a reader skipped (an imported log's
+    malformed lines, each naming its place); :meth:`from_records` builds one
+    from records in memory (the importers of :mod:`homing.logs`).
     """
 
     def __init__(self, path: str | Path, *, salvage: bool = False) -> None:
@@ -362,7 +420,8 @@ class RunLog:
             raise UserError(f"unknown run log format version {version} (this homing reads version {VERSION})",
                             self.path, 1, 1)
         frames: list[Any] = []
-        self.truncated, self.damage = False, None
+        self.truncated = False
+        self.damage: str | None = None
         pos = magic.end()
         while pos < len(raw):
             problem, frame, end = _read_frame(raw, pos, first=not frames)
@@ -383,6 +442,17 @@ class RunLog:
         self.meta: dict[str, Any] = head.get("meta", {})
         self.schema: dict[str, Any] = head.get("schema", {})
         self.records: list[dict[str, Any]] = [r for f in frames[1:] for r in f["records"]]
+        self.warnings: list[str] = []
+
+    @classmethod
+    def from_records(cls, path: str | Path, meta: Mapping[str, Any], records: Sequence[dict[str, Any]],
+                     warnings: Sequence[str] = ()) -> RunLog:
+        """A run log held in memory: ``records`` of :data:`SCHEMA`'s kinds in stamp order, read from ``path``."""
+        log = cls.__new__(cls)
+        log.path, log.meta, log.schema = Path(path), dict(meta), dict(SCHEMA)
+        log.records, log.truncated, log.warnings = list(records), False, list(warnings)
+        log.damage = None
+        return log
 
     def of_kind(self, kind: str, until: float | None = None) -> Iterator[dict[str, Any]]:
         """Raw records of one kind, in order, with stamp ≤ ``until`` [s] if given."""
@@ -434,6 +504,10 @@ class RunLog:
     def truth(self, until: float | None = None) -> list[tuple[float, Pose2]]:
         """The simulator's true poses (evaluation code only)."""
         return [(r["t"], Pose2(*r["pose"])) for r in self.of_kind("truth", until)]
+
+    def reference(self, until: float | None = None) -> list[tuple[float, Pose2]]:
+        """An imported log's own corrected poses (``ref`` records): a reference to score against, not truth."""
+        return [(r["t"], Pose2(*r["pose"])) for r in self.of_kind("ref", until)]
 
     def commands(self, until: float | None = None) -> list[tuple[float, Twist2]]:
         return [(r["t"], Twist2(r["v"], r["w"])) for r in self.of_kind("cmd", until)]

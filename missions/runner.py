@@ -1,10 +1,14 @@
 """Tick a compiled mission against a robot adapter, on the adapter's clock (ARCHITECTURE.md, one tick).
 
 Each tick: observe and publish ``/robot/observation`` and ``/robot/time``;
-update the services in order; clear ``/cmd_vel`` and tick the tree once;
-send ``/cmd_vel`` (zero if no leaf wrote it); step the adapter by ``1/rate``
-seconds. The run ends when the root finishes, when ``until`` seconds of
-adapter time have passed, or on Ctrl-C; in every case the robot is sent a
+update the services in order; clear ``/cmd_vel`` and ``/runner/idle_until``
+and tick the tree once; send ``/cmd_vel`` (zero if no leaf wrote it); step
+the adapter by ``1/rate`` seconds — or, when a leaf said the tree has
+nothing to do until a later time (``/runner/idle_until``; the charging robot
+does) and no leaf drives, straight to that time in one step (at most
+``MAX_IDLE``), so a docked robot costs one tick per poll, not ten a second.
+
+The run ends when the root finishes, when ``until`` seconds of adapter time have passed, or on Ctrl-C; in every case the robot is sent a
 zero command and the tree is halted (running leaves get ``terminate(INVALID)``
 and cancel their work) before the services shut down.
 
@@ -29,7 +33,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import py_trees
-from homing.behaviours.keys import TAGS_KEY
+from homing.behaviours.keys import EXPLORE_GOAL_KEY, IDLE_KEY, NAVIGATOR_KEY, TAGS_KEY
 from homing.behaviours.registry import Service
 from homing.missions.compiler import CompiledMission
 from homing.robot import Observation, RobotAdapter, Twist2
@@ -37,6 +41,7 @@ from py_trees.common import Access, Status
 
 UNTIL_SLACK = 1e-6  # [s] float steps of 1/rate must not cost an extra tick at the limit
 STOP_REASONS = ("success", "failure", "time_limit", "interrupted")
+MAX_IDLE = 60.0  # [s] longest single step the runner takes on a leaf's word that nothing needs a tick
 
 
 @dataclass(frozen=True)
@@ -101,12 +106,15 @@ class Runner:
     truth: Callable[[], Any] | None = None  # the simulator's true pose, for the log only
 
     def __post_init__(self) -> None:
+        # py_trees keeps one blackboard per process: a run starts from an empty one, not from the last run's values.
+        py_trees.blackboard.Blackboard.storage.clear()
         self.tree = py_trees.trees.BehaviourTree(self.mission.root)
         self.bb = py_trees.blackboard.Client(name="runner")
-        for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state"):
+        for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state", IDLE_KEY):
             self.bb.register_key(key=key, access=Access.WRITE)
-        if TAGS_KEY not in self.bb.remappings:
-            self.bb.register_key(key=TAGS_KEY, access=Access.READ)
+        for key in (TAGS_KEY, NAVIGATOR_KEY, EXPLORE_GOAL_KEY):  # logged with --record
+            if key not in self.bb.remappings:
+                self.bb.register_key(key=key, access=Access.READ)
         for key in self.mission.source.view_keys:
             if key not in self.bb.remappings:
                 self.bb.register_key(key=key, access=Access.READ)
@@ -114,6 +122,11 @@ class Runner:
         self._names = {n.id: n.name for n in self.mission.root.iterate()}
         self.tree.visitors.append(_ChangeVisitor(self))
         self._setup_done = False
+        self._stop_requested = False
+
+    def request_stop(self) -> None:
+        """End the run after this tick, as Ctrl-C does (reason ``interrupted``): for callbacks and tests."""
+        self._stop_requested = True
 
     @property
     def period(self) -> float:
@@ -153,12 +166,16 @@ class Runner:
         if rec is not None:
             rec.record_tags(obs.stamp, self.read(TAGS_KEY) or [])
         self.bb.set("/cmd_vel", None, overwrite=True)
+        self.bb.set(IDLE_KEY, None, overwrite=True)
         self.tree.tick()
         self._sweep()
         cmd = self.bb.get("/cmd_vel")
         self.last_command = self.robot.command(cmd.v, cmd.omega) if isinstance(cmd, Twist2) else self.robot.command(0.0, 0.0)
         if rec is not None:
             rec.record_command(obs.stamp, self.last_command)
+            rec.record_image(obs.image)
+            nav = self.read(NAVIGATOR_KEY)
+            rec.record_plan(obs.stamp, getattr(nav, "path", None), self.read(EXPLORE_GOAL_KEY))
         self.ticks += 1
         return self.mission.root.status
 
@@ -178,7 +195,9 @@ class Runner:
                 if status in (Status.SUCCESS, Status.FAILURE):
                     reason = status.value.lower()
                     break
-                self.robot.step(self.period)
+                if self._stop_requested:
+                    break
+                self.robot.step(self.next_step())
                 self._pace()
         except KeyboardInterrupt:
             reason = "interrupted"
@@ -204,6 +223,17 @@ class Runner:
         self.tree.shutdown()
         if self.on_tick is not None:
             self.on_tick(self)
+
+    def next_step(self) -> float:
+        """Seconds of adapter time to the next tick: one period, or up to the time a leaf said it may idle to."""
+        idle_until = self.read(IDLE_KEY)
+        cmd = self.last_command
+        if idle_until is None or cmd.v != 0.0 or cmd.omega != 0.0:
+            return self.period
+        step = min(float(idle_until) - self.now, MAX_IDLE)
+        if self.until is not None:
+            step = min(step, self.start + self.until - self.now)
+        return max(self.period, step)
 
     def _pace(self) -> None:
         if not self.speed:

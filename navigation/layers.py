@@ -31,17 +31,19 @@ from typing import Any
 import cv2
 import numpy as np
 from homing.robot import Bumpers, Pose2
-from homing.robot.turtlebot import BASE_RADIUS, BUMPER_CENTRE_HALF, BUMPER_SIDE_LIMIT
+from homing.robot.turtlebot import (
+    BASE_RADIUS,
+    BUMPER_CENTRE_HALF,
+    BUMPER_SIDE_LIMIT,
+    DOCK_DEPTH,
+    DOCK_WIDTH,
+)
 
 BUMP_MEMORY = 60.0  # [s] a bumper mark is forgotten after this (Nav2 would keep it until cleared)
 BUMP_ARC_STEP = math.radians(5.0)  # [rad] sampling of a pressed sector's arc
 BUMP_RIM = BASE_RADIUS + 0.01  # [m] marks sit just beyond the bumper's rim, where the obstacle is
 MAX_BUMP_MARKS = 2000  # the oldest marks go first beyond this
 EDGE_STEP = 0.02  # [m] sampling of a keep-out zone's edge for the controllers
-# The Kobuki docking station (kobuki docs): a box 0.12 m deep and 0.30 m wide in front of the
-# wall, its front face where the docked robot's rim stops.
-DOCK_DEPTH = 0.12  # [m]
-DOCK_WIDTH = 0.30  # [m]
 DOCK_MARGIN = 0.03  # [m] the zone is grown by this for the pose's uncertainty
 
 # Bumper sectors [rad] in base_link as (first, last) angle, kobuki's convention (robot/turtlebot.py).

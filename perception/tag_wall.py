@@ -27,6 +27,7 @@ from dataclasses import replace
 import numpy as np
 from homing.perception.apriltag import TagMeasurement
 from homing.robot.frames import wrap_angle
+from homing.robot.history import interpolate_pose
 from homing.robot.types import Pose2, Scan
 
 HALF_SPAN = 0.45  # [m] scan points this close to the tag's centre are the wall candidates
@@ -123,18 +124,6 @@ def refine_yaw(m: TagMeasurement, scan: Scan | None, image_from_scan: Pose2 | No
     return replace(m, pose=Pose2(m.pose.x, m.pose.y, yaw), covariance=cov, yaw_source="wall")
 
 
-def _pose_at(history: list[tuple[float, Pose2]], stamp: float) -> Pose2:
-    """Odometry pose at ``stamp`` [s], linear between the bracketing samples (nearest end outside them)."""
-    if stamp <= history[0][0]:
-        return history[0][1]
-    for (t0, p0), (t1, p1) in zip(history, history[1:], strict=False):
-        if t0 <= stamp <= t1:
-            a = 0.0 if t1 <= t0 else (stamp - t0) / (t1 - t0)
-            return Pose2(p0.x + a * (p1.x - p0.x), p0.y + a * (p1.y - p0.y),
-                         wrap_angle(p0.theta + a * wrap_angle(p1.theta - p0.theta)))
-    return history[-1][1]
-
-
 class TagPerception:
     """Tags of each *new* camera image, measured in base_link, headings refined by the wall (one per robot).
 
@@ -163,5 +152,5 @@ class TagPerception:
         tags = self.detector.detect(image)  # type: ignore[attr-defined]
         if not self.wall_yaw or scan is None or not tags:
             return tags
-        image_from_scan = _pose_at(self._history, image.stamp).between(_pose_at(self._history, scan.stamp))
+        image_from_scan = interpolate_pose(self._history, image.stamp).between(interpolate_pose(self._history, scan.stamp))
         return [refine_yaw(m, scan, image_from_scan) for m in tags]

@@ -7,6 +7,7 @@ from homing.robot.adapter import Clock, RobotAdapter
 from homing.robot.turtlebot import RobotLimits
 from homing.robot.types import (
     IR,
+    BaseSwitches,
     BatteryState,
     Bumpers,
     CameraImage,
@@ -23,6 +24,7 @@ from homing.robot.types import (
 
 __all__ = [
     "IR",
+    "BaseSwitches",
     "BatteryState",
     "Bumpers",
     "CameraImage",

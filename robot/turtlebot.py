@@ -22,6 +22,12 @@ NAV_MAX_V = 0.5  # [m/s] navigation never asks for more
 BUMPER_CENTRE_HALF = math.radians(30.0)
 BUMPER_SIDE_LIMIT = math.radians(90.0)
 
+# The Kobuki docking station (kobuki docs): a box in front of the wall, its front face where the
+# docked robot's rim stops; its AprilTag hangs on the wall above it, on its centre line (thesis §3.3.5).
+DOCK_DEPTH = 0.12  # [m] wall face to the dock's front face
+DOCK_WIDTH = 0.30  # [m]
+DOCKED_FROM_WALL = DOCK_DEPTH + BASE_RADIUS  # [m] wall face to the docked robot's centre
+
 # RPLIDAR A1 as used in the thesis
 LIDAR_HEIGHT = 0.5  # [m]
 LIDAR_RAYS = 360

@@ -235,6 +235,22 @@ class BatteryState:
         return self.source is ChargingSource.DOCK
 
 
+@dataclass(frozen=True, slots=True)
+class BaseSwitches:
+    """The Kobuki base's other switches: wheel drops (left, right), cliff sensors (left, centre, right)
+    and the three buttons B0, B1, B2 (True while pressed). The simulator raises none of them."""
+
+    wheel_drop_left: bool = False
+    wheel_drop_right: bool = False
+    cliff_left: bool = False
+    cliff_centre: bool = False
+    cliff_right: bool = False
+    buttons: tuple[bool, bool, bool] = (False, False, False)
+
+    def wheel_drop(self) -> bool:
+        return self.wheel_drop_left or self.wheel_drop_right
+
+
 @dataclass(frozen=True)
 class Observation:
     """One snapshot of everything the robot senses, at ``stamp`` [s] on the adapter's clock.
@@ -243,6 +259,9 @@ class Observation:
     were taken; an unchanged stamp means nothing new arrived). ``image`` is
     ``None`` when the camera has produced nothing (off, or nothing to render).
     ``computer_battery`` is the on-board computer's battery, ``None`` if unknown.
+    ``devices_lost`` names the devices a hardware adapter has lost (unplugged,
+    silent): while it is not empty the adapter keeps the base stopped, and the
+    readings of the lost devices are their last ones.
     """
 
     stamp: float
@@ -253,3 +272,5 @@ class Observation:
     dock_ir: DockIR
     battery: BatteryState
     computer_battery: BatteryState | None = None
+    switches: BaseSwitches = field(default_factory=BaseSwitches)
+    devices_lost: tuple[str, ...] = ()

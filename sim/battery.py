@@ -28,7 +28,8 @@ from homing.robot.turtlebot import (
     battery_percent,
 )
 from homing.robot.types import BatteryState, ChargingSource, ChargingState
-from homing.sim.schema import Section
+
+from homing.section import Section
 
 SECONDS_PER_HOUR = 3600.0  # [s/h]
 

@@ -40,11 +40,9 @@ from functools import cached_property
 
 import numpy as np
 from homing.robot.frames import wrap_angle
-from homing.robot.turtlebot import BASE_RADIUS
+from homing.robot.turtlebot import BASE_RADIUS, DOCK_DEPTH, DOCK_WIDTH
 from homing.robot.types import IR, DockIR, Pose2
 
-DOCK_DEPTH = 0.12  # [m] wall face to the dock's front face (where the robot's rim stops)
-DOCK_WIDTH = 0.30  # [m]
 DOCK_HEIGHT = 0.12  # [m] below the lidar: the lidar does not see the dock
 FIELD_DEPTH = 2.0  # [m] IR field depth in front of the emitters
 FIELD_HALF_WIDTH = 2.5  # [m] IR field half width

@@ -24,9 +24,8 @@ import math
 import re
 from dataclasses import dataclass
 
-from homing.sim.schema import Section
-
 from homing.errors import UserError
+from homing.section import Section
 
 FAULT_NAMES = ("lidar_dropout", "camera_off", "wheel_slip", "kidnap", "dock_obstacle", "bumper_hit")
 DEFAULT_DURATION = {  # [s]

@@ -15,6 +15,12 @@ Each ``step(dt)`` runs sub-steps of at most ``physics_dt``; in each:
 6. the lidar scans at 5.5 Hz and the camera renders at ``camera_rate`` when
    a tag can be in view.
 
+A step under a zero command with nothing moving in the world (no
+``bumper_hit`` obstacle or ``kidnap`` due) is idle: it runs in sub-steps of
+up to ``IDLE_DT`` and senses once at its end (the intermediate scans and
+frames would be overwritten unread), so a robot charging on its dock for an
+hour costs a few milliseconds of simulation per minute.
+
 Every random draw comes from numpy Generators seeded from ``seed`` (one
 stream per sensor), and time only from the simulated clock, so the same
 world, seed and commands give byte-identical observations.
@@ -46,6 +52,8 @@ PUSH_ITERATIONS = 4  # collision resolution passes per sub-step
 BUMP_HIT_SPEED = 0.5  # [m/s] a bumper_hit obstacle's approach speed
 BUMP_HIT_BEARING = {"left": math.radians(60.0), "centre": 0.0, "right": math.radians(-60.0)}
 KIDNAP_CLEARANCE = 0.35  # [m] a random kidnap lands at least this far from walls
+IDLE_DT = 1.0  # [s] longest sub-step of an idle step (no command, nothing moving)
+MOVING_FAULTS = ("bumper_hit", "kidnap")  # faults that move something: no idle step across them
 
 
 class SimClock:
@@ -133,6 +141,13 @@ class SimRobot:
         """Advance the simulation by ``dt`` [s] under the current command."""
         if dt <= 0:
             return
+        if self._idle(dt):
+            n = max(1, math.ceil(dt / IDLE_DT - 1e-9))
+            for _ in range(n):
+                self._substep(dt / n, sense=False)
+            self._catch_up_sensors()
+            self._bumpers = Bumpers()
+            return
         n = max(1, math.ceil(dt / self.physics_dt - 1e-9))
         h = dt / n
         pressed = {"left": False, "centre": False, "right": False}
@@ -140,6 +155,24 @@ class SimRobot:
             for side in self._substep(h):
                 pressed[side] = True
         self._bumpers = Bumpers(pressed["left"], pressed["centre"], pressed["right"])
+
+    def _idle(self, dt: float) -> bool:
+        """Whether the step may be taken coarsely: no command, and nothing moving in the world during it."""
+        if self._cmd.v != 0.0 or self._cmd.omega != 0.0 or dt <= self.physics_dt:
+            return False
+        t0, t1 = self.clock.t, self.clock.t + dt
+        return not any(f.name in MOVING_FAULTS and f.at < t1 and f.at + max(f.length, 1e-9) > t0 for f in self.faults)
+
+    def _catch_up_sensors(self) -> None:
+        """After an idle step: of the scans and frames that fell due in it, take only the last, at its due time."""
+        t = self.clock.t + 1e-9
+        period = 1.0 / LIDAR_RATE
+        if t >= self._next_scan:
+            self._next_scan += math.floor((t - self._next_scan) / period) * period
+            self._take_scan(min(self._next_scan, self.clock.t))
+        if self.camera is not None and t >= self._next_frame:
+            self._next_frame += math.floor((t - self._next_frame) / self.camera_period) * self.camera_period
+            self._take_frame(min(self._next_frame, self.clock.t))
 
     def close(self) -> None:
         """Release the pybullet client."""
@@ -162,7 +195,7 @@ class SimRobot:
         return self.dock.contacts_closed(self._pose)
 
     # --- one sub-step --------------------------------------------------------------------------
-    def _substep(self, h: float) -> set[str]:
+    def _substep(self, h: float, sense: bool = True) -> set[str]:
         t = self.clock.t
         self._apply_faults(t, h)
         v, w = self._cmd.v, self._cmd.omega
@@ -179,7 +212,8 @@ class SimRobot:
         self.base_battery.update(h, v, w, on_dock)
         self.computer_battery.update(h, v, w, on_dock)
         self.clock.t = t + h
-        self._sense()
+        if sense:
+            self._sense()
         if on_dock:
             sides.discard("centre")  # sitting on the contacts presses no bumper
         return sides
@@ -206,18 +240,26 @@ class SimRobot:
         return pose, sides
 
     def _sense(self) -> None:
+        """Take the scan and the frame that are due now."""
         t = self.clock.t
         if t + 1e-9 >= self._next_scan:
-            burst = max((f.fraction for f in self.faults if f.name == "lidar_dropout" and f.active(t)), default=0.0)
-            self._scan = self.lidar.scan(self._pose, t, self._rng_lidar, burst)
-            self._next_scan += 1.0 / LIDAR_RATE
+            self._take_scan(t)
         if self.camera is not None and t + 1e-9 >= self._next_frame:
-            self._next_frame += self.camera_period
-            off = any(f.name == "camera_off" and f.active(t) for f in self.faults)
-            if not off and self.camera.visible_tags(self._pose, self.world.tags):
-                self._image = self.camera.render(self._pose, t, self._rng_camera)
-            else:
-                self._image = None
+            self._take_frame(t)
+
+    def _take_scan(self, at: float) -> None:
+        burst = max((f.fraction for f in self.faults if f.name == "lidar_dropout" and f.active(at)), default=0.0)
+        self._scan = self.lidar.scan(self._pose, at, self._rng_lidar, burst)
+        self._next_scan += 1.0 / LIDAR_RATE
+
+    def _take_frame(self, at: float) -> None:
+        assert self.camera is not None
+        self._next_frame += self.camera_period
+        off = any(f.name == "camera_off" and f.active(at) for f in self.faults)
+        if not off and self.camera.visible_tags(self._pose, self.world.tags):
+            self._image = self.camera.render(self._pose, at, self._rng_camera)
+        else:
+            self._image = None
 
     def render(self) -> CameraImage:
         """Render a frame now whatever is in view (demos, tests); does not change observations."""

@@ -38,12 +38,12 @@ from homing.sim.battery import BASE_DEFAULT, COMPUTER_DEFAULT, BatteryParams, pa
 from homing.sim.dock import Dock
 from homing.sim.faults import Fault, fault_from_section
 from homing.sim.placement import main_component, place_dock, place_tags, reachable_from
-from homing.sim.schema import Section, section_at
 from homing.sim.tags import CELLS, TAG_HEIGHT, TAG_IDS, TAG_SIZE, WALL_OFFSET, Tag
 from homing.sim.walls import WALL_HEIGHT, solid_mask, world_to_cell
 
 from homing.errors import UserError
 from homing.map_server import MapData, load_map
+from homing.section import Section, section_at
 from homing.yamlfile import LocatedDict, load
 
 WORLDS_DIR = Path(__file__).resolve().parent / "worlds"

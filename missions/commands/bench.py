@@ -25,7 +25,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         if not (hasattr(module, "add_arguments") and hasattr(module, "run")):
             continue
         doc = plain_text(module.__doc__)
-        bench = names.add_parser(info.name, help=doc.split(". ")[0].split("\n\n")[0] if doc else None,
+        name = info.name.replace("_", "-")  # slam_logs.py is `homing bench slam-logs` (slam_logs works too)
+        aliases = [info.name] if name != info.name else []
+        bench = names.add_parser(name, aliases=aliases, help=doc.split(". ")[0].split("\n\n")[0] if doc else None,
                                  description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
         module.add_arguments(bench)
         bench.add_argument("--json", metavar="PATH", type=output_file("--json"), help="write the figures as JSON to PATH")

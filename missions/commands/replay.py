@@ -1,11 +1,21 @@
-"""``homing replay RUN``: replay a run log — landmark SLAM offline, and the thesis's fig. 5-9 plot.
+"""``homing replay LOG``: replay any log — offline SLAM (grid or pose graph) on real robots' logs, landmark SLAM on homing runs, export to MCAP.
 
-``--slam`` feeds the log's odometry, scans and tag sightings, tick by tick,
-to the same :class:`homing.mapping.landmark_slam.LandmarkSlam` the
-``tag_slam`` service runs online, so the result equals the online one for
-the same run (as the thesis ran GTSAM offline on its logs). ``--out PNG``
-draws the odometry, optimised and true trajectories and the tags;
-``--until T`` stops at T seconds of the run.
+LOG is a homing run log (``homing run … --record``), a CARMEN log (plain or
+``.gz``) or a ROS 1/2 bag (``.bag``; a rosbag2 folder, ``.db3`` or
+``.mcap``; ``--scan-topic``/``--odom-topic`` choose its topics), read by
+:func:`homing.logs.open_log`.
+
+``--slam grid|graph`` (also ``odometry``, ``scan_matching``) maps the log
+offline (:mod:`homing.logs.offline`): ``--out PNG`` draws the occupancy grid
+and the trajectory (and the log's own corrected trajectory when it has
+one), ``--save-map YAML`` writes the grid as a map_server map. ``--slam``
+alone on a homing run log feeds its odometry, scans and tag sightings to
+the same :class:`homing.mapping.landmark_slam.LandmarkSlam` the
+``tag_slam`` service runs online (``tags``; the thesis's fig. 5-9 with
+``--out``); on any other log it means ``graph``. ``--mcap DIR`` writes the
+log as a ROS 2 bag in MCAP (:mod:`homing.logs.mcap_export`), with the map
+and ``map → odom`` of the ``--slam`` method.
+``--until T`` stops at T seconds of the log.
 """
 
 from __future__ import annotations
@@ -17,6 +27,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+OFFLINE = ("odometry", "scan_matching", "grid", "graph")
+
 
 def _defaults() -> dict[str, Any]:
     from homing.mapping.landmark_slam import SlamConfig
@@ -27,21 +39,28 @@ def _defaults() -> dict[str, Any]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from homing.missions.commands._args import output_file, plain_text, positive
+    from homing.missions.commands._args import output_file, output_map, plain_text, positive
 
     parser = sub.add_parser(
-        "replay", help="replay a run log: landmark SLAM offline (--slam), trajectories and tags (--out PNG)",
+        "replay", help="replay a log (homing run, CARMEN, ROS bag): offline SLAM, map picture, MCAP export",
         description=plain_text(__doc__), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("run", metavar="RUN", help="run log written by 'homing run … --record RUN'")
-    parser.add_argument("--slam", action="store_true", help="run landmark SLAM on the log and print the tags")
+    parser.add_argument("run", metavar="LOG", help="a homing run log, a CARMEN log or a ROS 1/2 bag")
+    parser.add_argument("--slam", nargs="?", const="default", choices=("tags", *OFFLINE, "default"), metavar="METHOD",
+                        help="SLAM to run: grid, graph, odometry, scan_matching, or tags (a homing run's landmark "
+                             "SLAM; the default for a homing run log; graph for any other log)")
     parser.add_argument("--out", metavar="PNG", type=output_file("--out"),
-                        help="draw odometry, optimised and true trajectories and the tags")
+                        help="draw the map and trajectory (tags: trajectories and tags)")
+    parser.add_argument("--save-map", metavar="YAML", type=output_map("--save-map"),
+                        help="save the SLAM's occupancy grid as a map_server map")
+    parser.add_argument("--mcap", metavar="DIR", help="export the log as a ROS 2 bag in MCAP to the new folder DIR")
     parser.add_argument("--until", type=positive, metavar="T", help="replay only the first T seconds [s]")
     parser.add_argument("--json", metavar="PATH", type=output_file("--json"),
-                        help="write the optimised landmarks and map→odom as JSON")
+                        help="write the result as JSON (landmarks, or the trajectory)")
+    parser.add_argument("--scan-topic", metavar="TOPIC", help="a bag's sensor_msgs/LaserScan topic")
+    parser.add_argument("--odom-topic", metavar="TOPIC", help="a bag's nav_msgs/Odometry topic")
     parser.add_argument("--salvage", action="store_true",
-                        help="replay a damaged log up to the damage (default: report it and stop)")
+                        help="replay a damaged homing run log up to the damage (default: report it and stop)")
     parser.set_defaults(func=run)
 
 
@@ -89,15 +108,47 @@ def world_from_map_frame(log: Any, until: float | None = None) -> Any:
     return truth[0][1].compose(first.obs.odom.pose.inverse())
 
 
+def _check_outputs(args: argparse.Namespace) -> None:
+    """The --mcap folder must be new and makeable (the files were checked while parsing), before SLAM runs."""
+    from homing.errors import UserError
+    from homing.outputs import check_folder
+
+    if args.mcap and Path(args.mcap).exists():
+        raise UserError("--mcap: already exists (a bag is written to a new folder)", args.mcap)
+    if args.mcap:
+        check_folder(args.mcap, "--mcap")
+
+
 def run(args: argparse.Namespace) -> int:
-    from homing.missions.runlog import RunLog
+    from homing.logs import open_log
 
     from homing.errors import UserError
 
-    log = RunLog(args.run, salvage=args.salvage)
-    if not (args.slam or args.out or args.json):
-        raise UserError("nothing to do: give --slam, --out PNG or --json PATH", args.run)
+    if not (args.slam or args.out or args.json or args.mcap or args.save_map):
+        raise UserError("nothing to do: give --slam [METHOD], --out PNG, --save-map YAML, --mcap DIR or --json PATH",
+                        args.run)
+    _check_outputs(args)
+    log = open_log(args.run, args.scan_topic, args.odom_topic, salvage=args.salvage)
+    for w in log.warnings[:10]:
+        print(f"warning: {w}")
+    if len(log.warnings) > 10:
+        print(f"warning: … and {len(log.warnings) - 10} more lines skipped")
+    native = log.meta.get("format", "homing") == "homing"
+    method = args.slam if args.slam not in (None, "default") else ("tags" if native else "graph")
+    if method == "tags" and not native:
+        raise UserError("--slam tags needs a homing run log (tag sightings); use grid or graph", args.run)
+    if args.until is not None:
+        log.records = [r for r in log.records if r["t"] <= args.until]
+    if method != "tags":
+        return run_offline(args, log, method)
+    if args.save_map:
+        raise UserError("--save-map needs a grid: --slam grid or graph")
     slam = replay_slam(log, args.until)
+    if args.mcap:
+        from homing.logs.mcap_export import export_mcap
+
+        m2o = slam.map_to_odom
+        _report_export(args.mcap, export_mcap(log, args.mcap, map_to_odom=lambda _t: m2o))
     truth_tags = _true_tags(log.meta)
     world_from_map = world_from_map_frame(log, args.until)
     landmarks = slam.landmarks()
@@ -105,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: {args.run}: damaged at {log.damage}: replayed up to {log.end:.1f} s", file=sys.stderr)
     elif log.truncated:
         print(f"{args.run}: log ends mid-frame (killed run?): replayed up to {log.end:.1f} s")
-    if args.slam:
+    if args.slam or not (args.out or args.json or args.mcap):
         print(f"{len(slam.keyframes)} keyframes, {len(landmarks)} tags, {slam.n_tag_factors} tag factors; "
               f"map→odom = ({slam.map_to_odom.x:.3f} m, {slam.map_to_odom.y:.3f} m, "
               f"{math.degrees(slam.map_to_odom.theta):.2f}°)")
@@ -173,5 +224,105 @@ def plot(log: Any, slam: Any, truth_tags: dict[int, Any], world_from_map: Any, u
     fig.suptitle(f"{log.path.name}: tags ■ estimated, + true")
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    plt.close(fig)
+    atomic_write(out, buf.getvalue())
+
+
+def run_offline(args: argparse.Namespace, log: Any, method: str) -> int:
+    """Grid or pose-graph SLAM over the log; picture, map, JSON and MCAP as asked."""
+    from homing.logs.offline import run_method
+
+    from homing.atomic import atomic_write
+
+    result = run_method(log, method)
+    scans = len(result.stamps)
+    print(f"{log.path.name}: {method} over {scans} scans, {1e3 * result.seconds_per_scan:.1f} ms per scan"
+          + (f"; {', '.join(f'{k} {v}' for k, v in result.info.items())}" if result.info else ""))
+    if args.save_map:
+        from homing.mapping.map_io import save_grid
+
+        print(f"map saved: {save_grid(args.save_map, result.grid)}")
+    if args.json:
+        atomic_write(args.json, json.dumps({"method": method, "stamps": result.stamps,
+                                            "poses": [[p.x, p.y, p.theta] for p in result.poses],
+                                            "seconds_per_scan": result.seconds_per_scan, **result.info}) + "\n")
+    if args.out:
+        plot_map(log, result, Path(args.out))
+    if args.mcap:
+        export_offline(log, result, args.mcap)
+    return 0
+
+
+def export_offline(log: Any, result: Any, out: str) -> None:
+    """The log as MCAP, with ``map → odom`` and a growing ``/map`` from the offline SLAM's poses."""
+    import bisect
+
+    from homing.logs.mcap_export import export_mcap
+    from homing.logs.offline import scans_of
+    from homing.mapping.grid import OccupancyGrid
+
+    data = [(scan, odom.pose) for _, odom, scan in scans_of(log) if scan is not None]
+    at = dict(zip(result.stamps, result.poses, strict=True))
+    fixes = sorted((s.stamp, at[s.stamp].compose(o.inverse())) for s, o in data if s.stamp in at)
+    stamps = [t for t, _ in fixes]
+    grid = OccupancyGrid(result.grid.resolution)
+    drawn = [0]
+
+    def map_to_odom(t: float) -> Any:
+        i = bisect.bisect_right(stamps, t) - 1
+        return fixes[max(i, 0)][1] if fixes else None
+
+    def grid_at(t: float) -> Any:
+        while drawn[0] < len(data) and data[drawn[0]][0].stamp <= t:
+            scan = data[drawn[0]][0]
+            if scan.stamp in at:
+                grid.integrate(scan, at[scan.stamp])
+            drawn[0] += 1
+        return grid
+
+    _report_export(out, export_mcap(log, out, map_to_odom=map_to_odom if fixes else None, grid_at=grid_at))
+
+
+def _report_export(out: str, counts: dict[str, int]) -> None:
+    print(f"MCAP written: {out} ({', '.join(f'{t} {n}' for t, n in sorted(counts.items()))})")
+
+
+def plot_map(log: Any, result: Any, out: Path) -> None:
+    """The occupancy grid with the trajectory (and the log's corrected one, aligned at the first scan)."""
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from homing.atomic import atomic_write
+    from homing.map_server import FREE, OCCUPIED
+
+    g = result.grid
+    h, w = g.shape
+    img = np.full((h, w), 0.75)
+    img[g.data == FREE] = 1.0
+    img[g.data == OCCUPIED] = 0.0
+    extent = (g.origin[0], g.origin[0] + w * g.resolution, g.origin[1], g.origin[1] + h * g.resolution)
+    fig, ax = plt.subplots(figsize=(9, 9 * h / max(w, 1) if w else 9))
+    ax.imshow(img, cmap="gray", vmin=0, vmax=1, origin="lower", extent=extent, interpolation="nearest")
+    est = np.array([p.as_array() for p in result.poses]).reshape(-1, 3)
+    ref = log.reference()
+    if ref and result.poses:
+        first = dict(ref).get(result.stamps[0])
+        if first is not None:
+            align = result.poses[0].compose(first.inverse())
+            r = np.array([align.compose(p).as_array() for _, p in ref])
+            ax.plot(r[:, 0], r[:, 1], "-", color="tab:green", lw=0.8, label="log's corrected poses")
+    ax.plot(est[:, 0], est[:, 1], "-", color="tab:blue", lw=0.8, label=f"{result.method} trajectory")
+    ax.set_title(f"{log.path.name}: {result.method}, {len(result.stamps)} scans, "
+                 f"{1e3 * result.seconds_per_scan:.1f} ms/scan")
+    ax.set_xlabel("x [m] (map)")
+    ax.set_ylabel("y [m] (map)")
+    ax.legend(loc="best", fontsize=8)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
     plt.close(fig)
     atomic_write(out, buf.getvalue())

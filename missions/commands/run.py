@@ -25,6 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("mission", metavar="MISSION.yaml")
     robot = parser.add_mutually_exclusive_group(required=True)
     robot.add_argument("--world", help="a bundled world's name, a world YAML or a map_server YAML")
+    robot.add_argument("--robot", metavar="ROBOT.yaml", help="drive the real robot its robot file describes (wall clock)")
     robot.add_argument(
         "--adapter", metavar="MODULE:CALLABLE",
         help="build the robot with CALLABLE(seed=N) from MODULE instead (any RobotAdapter)",
@@ -43,6 +44,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--record", metavar="RUN", type=output_file("--record"),
         help="write a run log of everything sensed and commanded to RUN (see 'homing replay')",
     )  # fmt: skip
+    parser.add_argument("--record-images", action="store_true",
+                        help="with --record: also log the camera images (JPEG; exported to MCAP by 'homing replay')")
     parser.add_argument("--save-map", metavar="PATH", type=output_map("--save-map"),
                         help="save the final /map/grid as a map_server map (PATH.yaml + .pgm)")
     add_set_argument(parser)
@@ -107,6 +110,12 @@ def _adapter(args: argparse.Namespace) -> Any:
 
     if args.adapter:
         return make_adapter(args.adapter, args.seed)
+    if args.robot:
+        try:
+            from homing.robot.hardware.robot import open_robot
+        except ImportError as err:
+            raise UserError(f"--robot needs the hardware extra (pip install 'homing[hardware]'): {err}") from None
+        return open_robot(args.robot)
     try:
         from homing.sim import SimRobot, load_world
     except ImportError as err:
@@ -116,11 +125,13 @@ def _adapter(args: argparse.Namespace) -> Any:
 
 def _recorder(args: argparse.Namespace, mission: Any, robot: Any) -> Any:
     """A run-log Recorder for ``--record`` with the run's metadata (None without the option)."""
+    from homing.errors import UserError
+
     if not args.record:
+        if getattr(args, "record_images", False):
+            raise UserError("--record-images needs --record RUN")
         return None
     from homing.missions.runlog import Recorder
-
-    from homing.errors import UserError
 
     meta: dict[str, Any] = {"world": args.world, "seed": args.seed, "mission": str(args.mission),
                             "adapter": args.adapter, "rate": args.rate or mission.rate}
@@ -128,7 +139,7 @@ def _recorder(args: argparse.Namespace, mission: Any, robot: Any) -> Any:
         if spec.name == "tag_slam":
             meta["tag_slam"] = {k: v for k, v in params.items() if isinstance(v, (int, float, str, bool))}
     try:
-        return Recorder(args.record, meta)
+        return Recorder(args.record, meta, images=bool(getattr(args, "record_images", False)))
     except OSError as err:
         raise UserError(f"--record: cannot write the run log: {err.strerror}", args.record) from None
 

@@ -1,6 +1,6 @@
-"""Typed field access for hand-written world files, every complaint at ``file:line:col``.
+"""Typed field access for hand-written YAML files (worlds, robot files), every complaint at ``file:line:col``.
 
-The world loader, battery and fault sections read YAML mappings through a
+The world loader, its battery and fault sections, and the robot file read YAML mappings through a
 :class:`Section`: it knows the file and the mapping's positions
 (:mod:`homing.yamlfile`), checks each value's type and range, and rejects
 keys it was not asked about so a misspelt key fails loudly instead of being

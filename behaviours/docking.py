@@ -1,0 +1,302 @@
+"""Lifecycle leaves: leave the dock, go home, servo on the dock's tag, IR-dock, charge (thesis §3.3).
+
+Thin by design: :class:`Undock` runs two :mod:`homing.navigation.recovery`
+motions (back out, turn a full circle to seed the costmap);
+:class:`GoHome` is :class:`~homing.behaviours.motion.NavigateToPose` to the
+staging pose in front of the dock the navigation service knows
+(``/nav/dock``); :class:`ServoToStaging` feeds the dock tag's sightings
+(``/perception/tags``) to :class:`homing.navigation.tag_servo.TagServo`;
+:class:`AutoDock` feeds the IR receivers, bumpers and charger to
+:class:`homing.navigation.dock_drive.DockDrive`; :class:`Charge` waits on the
+dock, telling the runner that nothing needs a tick meanwhile
+(``/runner/idle_until``). Failures are typed (``failure_reason``, also written
+to ``failure_key``) so the mission can branch on them: ``no_home``,
+``no_tag``, ``no_signal``, ``bumped``, ``not_docked``, ``still_docked``,
+``blocked``, ``timed_out``, and the navigation reasons of ``GoHome``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from homing.behaviours.base import TIMEOUT_PARAM, HomingBehaviour
+from homing.behaviours.energy_service import STAGING_DISTANCE, not_yet_charged, staging_pose
+from homing.behaviours.keys import (
+    CMD_VEL_KEY,
+    DOCK_KEY,
+    ENERGY_KEY,
+    IDLE_KEY,
+    NAVIGATOR_KEY,
+    OBSERVATION_KEY,
+    TAGS_KEY,
+)
+from homing.behaviours.motion import FAILURE_KEY, FAILURE_PARAM, NavigateToPose, _ReportsFailure
+from homing.behaviours.registry import Param, register
+from homing.navigation.dock_drive import DockDrive, DockState
+from homing.navigation.recovery import BackUp as BackUpMotion
+from homing.navigation.recovery import MotionStatus
+from homing.navigation.recovery import Spin as SpinMotion
+from homing.navigation.tag_servo import ServoStatus, Sighting, TagServo, staging_in_tag
+from homing.robot import ChargingSource, Observation
+from py_trees.common import Status
+
+CHARGE_POLL = 10.0  # [s] adapter time between looks at the batteries while charging
+
+
+def on_dock(obs: Observation | None) -> bool:
+    """Whether the base reports charge coming from the dock (the contacts are closed)."""
+    return obs is not None and obs.battery.source is ChargingSource.DOCK
+
+
+def _positive(name: str, value: float) -> float:
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be positive, not {value}")
+    return float(value)
+
+
+@register("IsDocked", kind="condition")
+class IsDocked(HomingBehaviour):
+    """SUCCESS while the base reports charge coming from the dock (charging or full), FAILURE otherwise.
+
+    Judged by the charger, not by a pose: a robot 3 mm off its contacts is not docked.
+    """
+
+    READS = (OBSERVATION_KEY,)
+
+    def update(self) -> Status:
+        docked = on_dock(self.observation())
+        self.feedback_message = "on the dock" if docked else "not on the dock"
+        return Status.SUCCESS if docked else Status.FAILURE
+
+
+@register("Undock")
+class Undock(_ReportsFailure):
+    """Back straight out of the dock ``distance``, then turn ``turn`` on the spot to seed the costmap all round.
+
+    Fails with ``still_docked`` if the charger still reports the dock after
+    backing out, ``blocked`` if the scan shows something behind, ``timed_out``.
+    """
+
+    PARAMS = (
+        Param("distance", float, 0.4, "m", "how far to back out"),
+        Param("speed", float, 0.1, "m/s", "backing speed"),
+        Param("turn", float, 2 * math.pi, "rad", "turn on the spot afterwards (0: none)"),
+        Param("omega", float, 0.8, "rad/s", "turning speed"),
+        FAILURE_PARAM,
+        TIMEOUT_PARAM,
+    )
+    READS = (OBSERVATION_KEY, NAVIGATOR_KEY)
+    WRITES = (CMD_VEL_KEY, "$failure_key")
+
+    def __init__(self, name: str, distance: float = 0.4, speed: float = 0.1, turn: float = 2 * math.pi,
+                 omega: float = 0.8, timeout: float = 60.0, failure_key: str = FAILURE_KEY) -> None:
+        self.failure_key = failure_key
+        super().__init__(name, timeout=timeout)
+        self.distance, self.speed = _positive("distance", distance), _positive("speed", speed)
+        self.turn, self.omega = float(turn), _positive("omega", omega)
+        self.motion: Any = None
+        self.phase = ""
+
+    def on_start(self) -> Status | None:
+        obs = self.observation()
+        if obs is None:
+            return self.fail("no_observation")
+        self.phase = "back"
+        self.motion = BackUpMotion(self.distance, self.speed, time_allowance=self.distance / self.speed + 10.0)
+        self.motion.start(obs.stamp, obs.odom.pose)
+        return None
+
+    def on_running(self) -> Status:
+        obs = self.observation()
+        if obs is None:
+            return self.fail("no_observation")
+        nav = self.read(NAVIGATOR_KEY)
+        pts = nav.scan_points_now(obs) if nav is not None else (obs.scan.points() if obs.scan else None)
+        status, cmd = self.motion.step(obs.stamp, obs.odom.pose, pts)
+        self.drive(cmd.v, cmd.omega)
+        self.feedback_message = f"{self.phase}: {self.motion.message}"
+        if status is MotionStatus.FAILED:
+            return self.fail("blocked" if "obstacle" in self.motion.message else "timed_out", self.motion.message)
+        if status is MotionStatus.RUNNING:
+            return Status.RUNNING
+        if self.phase == "back":
+            if on_dock(obs):
+                return self.fail("still_docked", "backed out but the charger still reports the dock")
+            if abs(self.turn) < 1e-9:
+                return Status.SUCCESS
+            self.phase = "turn"
+            self.motion = SpinMotion(self.turn, self.omega, time_allowance=abs(self.turn) / self.omega + 20.0)
+            self.motion.start(obs.stamp, obs.odom.pose)
+            return Status.RUNNING
+        return Status.SUCCESS
+
+
+@register("GoHome")
+class GoHome(NavigateToPose):
+    """Navigate to the staging pose ``staging_distance`` in front of the dock (``/nav/dock``), facing it.
+
+    The dock's pose in ``map`` is the one the navigation service recorded the
+    last time the base charged on it; FAILURE ``no_home`` if it never has.
+    The map may have drifted since: :class:`ServoToStaging` corrects on the tag.
+    """
+
+    PARAMS = (
+        Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose"),
+        *(p for p in NavigateToPose.PARAMS if p.name not in ("x", "y", "theta", "goal_key")),
+    )
+    READS = (*NavigateToPose.READS, DOCK_KEY)
+
+    def __init__(self, name: str, staging_distance: float = STAGING_DISTANCE, **kwargs: Any) -> None:
+        super().__init__(name, **kwargs)
+        self.staging_distance = _positive("staging_distance", staging_distance)
+
+    def on_start(self) -> Status | None:
+        dock = self.read(DOCK_KEY)
+        if dock is None:
+            self.navigator = None
+            return self.fail("no_home", "no dock known (the robot has never charged on one)")
+        goal = staging_pose(dock, self.staging_distance)
+        self.x, self.y, self.theta = goal.x, goal.y, goal.theta
+        return super().on_start()
+
+
+@register("ServoToStaging")
+class ServoToStaging(_ReportsFailure):
+    """Servo to the staging pose from sightings of the dock's tag (thesis §3.3.5); SUCCESS there, facing the dock.
+
+    Looks for the tag by sweeping ±``search_angle`` when it is not in view;
+    FAILURE ``no_tag`` when the sweep finds nothing. Reads the tags the
+    ``tag_slam`` service measured this tick (``/perception/tags``).
+    """
+
+    PARAMS = (
+        Param("tag", int, 0, "", "id of the tag above the dock"),
+        Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose"),
+        Param("xy_tolerance", float, 0.02, "m", "reached within this distance"),
+        Param("yaw_tolerance", float, math.radians(1.5), "rad", "and this heading error"),
+        Param("search_angle", float, math.radians(70.0), "rad", "sweep this far each way to find the tag"),
+        FAILURE_PARAM,
+        TIMEOUT_PARAM,
+    )
+    READS = (OBSERVATION_KEY, TAGS_KEY)
+    WRITES = (CMD_VEL_KEY, "$failure_key")
+
+    def __init__(self, name: str, tag: int = 0, staging_distance: float = STAGING_DISTANCE,
+                 xy_tolerance: float = 0.02, yaw_tolerance: float = math.radians(1.5),
+                 search_angle: float = math.radians(70.0), timeout: float = 60.0,
+                 failure_key: str = FAILURE_KEY) -> None:
+        self.failure_key = failure_key
+        super().__init__(name, timeout=timeout)
+        self.tag = int(tag)
+        self.servo = TagServo(staging_in_tag(_positive("staging_distance", staging_distance)),
+                              _positive("xy_tolerance", xy_tolerance), _positive("yaw_tolerance", yaw_tolerance),
+                              search_angle=_positive("search_angle", search_angle))
+
+    def on_start(self) -> Status | None:
+        obs = self.observation()
+        if obs is None:
+            return self.fail("no_observation")
+        self.servo.start(obs.stamp, obs.odom.pose)
+        return None
+
+    def on_running(self) -> Status:
+        obs = self.observation()
+        if obs is None:
+            return self.fail("no_observation")
+        for m in self.read(TAGS_KEY) or ():
+            if m.tag_id == self.tag:
+                self.servo.see(Sighting(m.stamp, m.pose, m.covariance))
+        cmd = self.servo.step(obs.stamp, obs.odom.pose)
+        self.drive(cmd.v, cmd.omega)
+        self.feedback_message = f"{self.servo.message} ({self.servo.sightings} sightings)"
+        if self.servo.status is ServoStatus.SUCCEEDED:
+            return Status.SUCCESS
+        if self.servo.status is ServoStatus.FAILED:
+            return self.fail(self.servo.reason or "failed", self.servo.message)
+        return Status.RUNNING
+
+
+@register("AutoDock")
+class AutoDock(_ReportsFailure):
+    """IR docking after kobuki's dock_drive (:mod:`homing.navigation.dock_drive`); SUCCESS once the base charges.
+
+    Start it on the staging pose. Docked means the charger says so, held for
+    a moment, never a pose. FAILURE ``no_signal`` (the dock's IR is not seen),
+    ``bumped`` (pressed into something ``max_bumps`` times), ``timed_out``.
+    """
+
+    PARAMS = (
+        Param("max_bumps", int, 3, "", "bumper presses before the attempt fails"),
+        FAILURE_PARAM,
+        TIMEOUT_PARAM,
+    )
+    READS = (OBSERVATION_KEY,)
+    WRITES = (CMD_VEL_KEY, "$failure_key")
+
+    def __init__(self, name: str, max_bumps: int = 3, timeout: float = 120.0, failure_key: str = FAILURE_KEY) -> None:
+        self.failure_key = failure_key
+        super().__init__(name, timeout=timeout)
+        if max_bumps < 1:
+            raise ValueError(f"max_bumps must be ≥ 1, not {max_bumps}")
+        self.dock_drive = DockDrive(max_bumps=max_bumps)
+
+    def on_start(self) -> Status | None:
+        obs = self.observation()
+        if obs is None:
+            return self.fail("no_observation")
+        self.dock_drive.start(obs.stamp, obs.odom.pose)
+        return None
+
+    def on_running(self) -> Status:
+        obs = self.observation()
+        if obs is None:
+            return self.fail("no_observation")
+        dd = self.dock_drive
+        cmd = dd.step(obs.stamp, obs.dock_ir, obs.bumpers, on_dock(obs), obs.odom.pose)
+        self.drive(cmd.v, cmd.omega)
+        self.feedback_message = f"{dd.state.value}: {dd.message}"
+        if dd.state is DockState.DONE:
+            return Status.SUCCESS
+        if dd.state.finished:
+            return self.fail(dd.reason or "failed", dd.message)
+        return Status.RUNNING
+
+
+@register("Charge")
+class Charge(_ReportsFailure):
+    """Stay on the dock until every battery reaches its undock level (``/energy/policy``) or reports full.
+
+    Sends no command. Between looks at the batteries (every ``poll`` [s])
+    it tells the runner the tree has nothing to do (``/runner/idle_until``),
+    so a docked robot costs almost nothing to tick or simulate. FAILURE
+    ``not_docked`` if the charger stops reporting the dock.
+    """
+
+    PARAMS = (
+        Param("poll", float, CHARGE_POLL, "s", "adapter time between looks at the batteries"),
+        FAILURE_PARAM,
+        TIMEOUT_PARAM,
+    )
+    READS = (OBSERVATION_KEY, ENERGY_KEY)
+    WRITES = (IDLE_KEY, "$failure_key")
+
+    def __init__(self, name: str, poll: float = CHARGE_POLL, timeout: float = 0.0,
+                 failure_key: str = FAILURE_KEY) -> None:
+        self.failure_key = failure_key
+        super().__init__(name, timeout=timeout)
+        self.poll = _positive("poll", poll)
+
+    def on_running(self) -> Status:
+        obs = self.observation()
+        if not on_dock(obs):
+            return self.fail("not_docked", "the charger no longer reports the dock")
+        assert obs is not None
+        policy = self.read(ENERGY_KEY) or {}
+        waiting = not_yet_charged(policy, obs)
+        if policy and not waiting:
+            self.feedback_message = "charged"
+            return Status.SUCCESS
+        self.feedback_message = "charging: " + ", ".join(waiting) if waiting else "waiting for the energy policy"
+        self.write(IDLE_KEY, obs.stamp + self.poll)
+        return Status.RUNNING

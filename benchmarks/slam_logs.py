@@ -1,0 +1,154 @@
+"""SLAM on real robots' logs, scored by the relations metric of Kümmerle et al. 2009: odometry, scan matching, grid SLAM, pose graph.
+
+Each log (a CARMEN log, a ROS bag or a homing run log; by default the five
+Radish logs in ``../shared/datasets/carmen/``) is replayed through every
+method of :mod:`homing.logs.offline`, and each trajectory is scored with
+:mod:`homing.mapping.relations`: against the log's relations file
+(``--relations FILE``, paired with the logs in order, or ``LOG.relations``
+beside a log) or, without one, against relations drawn from the log's own
+corrected poses (a corrected log's ``ref`` records — an RBPF's estimate,
+so a floor of a few centimetres is the reference's own error, not the
+method's). Per log and method: translational error [m] and rotational
+error [deg], mean ± std and maximum, and the method's wall time per scan.
+
+Published figures (Kümmerle et al. 2009, their relations, the uncorrected
+logs; translational error [m]) are printed as reference rows where a log's
+name matches: ACES, Intel, Freiburg 079, MIT CSAIL.
+
+Runs go to ``--engine`` (``local`` by default: time per scan is measured,
+and two runs on a 2-core machine would slow each other).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from homing.benchmarks.common import print_table, progress_bar, write_json
+from homing.benchmarks.engine import (
+    Outcome,
+    add_engine_arguments,
+    engine_from_args,
+    failures_table,
+    run_jobs,
+)
+
+SHARED_LOGS = Path(__file__).resolve().parent.parent.parent / "shared" / "datasets" / "carmen"
+METHOD_LABELS = {"odometry": "odometry", "scan_matching": "scan matching", "grid": "grid SLAM", "graph": "pose graph"}
+PUBLISHED = {  # Kümmerle et al. 2009, translational error [m]: scan matching, RBPF (gmapping), graph mapping
+    "aces": ((0.173, 0.614), (0.060, 0.049), (0.044, 0.044)),
+    "intel": ((0.220, 0.296), (0.070, 0.083), (0.031, 0.026)),
+    "freiburg-079": ((0.258, 0.427), (0.061, 0.044), (0.056, 0.042)),
+    "mit-csail": ((0.106, 0.325), (0.049, 0.049), (0.004, 0.009)),
+}
+
+
+def log_name(path: str | Path) -> str:
+    """A log's short name: its file name less ``.gz``, ``.log`` and ``-corrected``."""
+    name = Path(path).name
+    for suffix in (".gz", ".log", ".clf", ".bag", ".mcap", ".db3"):
+        name = name.removesuffix(suffix)
+    return name.removesuffix("-corrected")
+
+
+def score_method(log_path: str, method: str, relations_path: str | None) -> dict[str, Any]:
+    """One log through one method, scored (JSON keys of the issue); raises UserError on a bad log."""
+    from homing.logs import open_log
+    from homing.logs.offline import run_method
+    from homing.mapping.relations import read_relations, relations_from_poses, score
+
+    from homing.errors import UserError
+
+    log = open_log(log_path)
+    if relations_path:
+        relations, source = read_relations(relations_path), "file"
+    else:
+        ref = log.reference()
+        if not ref:
+            raise UserError("no relations file and no corrected poses to draw relations from", log_path)
+        relations, source = relations_from_poses([t for t, _ in ref], [p for _, p in ref]), "corrected poses"
+    result = run_method(log, method)
+    e = score(relations, result.stamps, result.poses)
+    return {"trans_err_mean_m": e.trans_mean, "trans_err_std_m": e.trans_std, "trans_err_max_m": e.trans_max,
+            "rot_err_mean_deg": e.rot_mean, "rot_err_std_deg": e.rot_std, "rot_err_max_deg": e.rot_max,
+            "seconds_per_scan": result.seconds_per_scan, "relations": e.n, "relations_missing": e.missing,
+            "relations_from": source, "scans": len(result.stamps), **result.info}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("logs", nargs="*", metavar="LOG",
+                        help="logs to score (default: the five in ../shared/datasets/carmen/ when present)")
+    parser.add_argument("--relations", action="append", metavar="FILE",
+                        help="a relations file (t1 t2 x y z roll pitch yaw per line) per LOG, in order")
+    parser.add_argument("--methods", nargs="+", default=list(METHOD_LABELS), choices=list(METHOD_LABELS),
+                        help="methods to run (default: all)")
+    add_engine_arguments(parser, workers=1)
+
+
+def run(args: argparse.Namespace) -> int:
+    from homing.errors import UserError
+
+    engine = engine_from_args(args)
+    logs = list(args.logs)
+    if not logs and SHARED_LOGS.is_dir():
+        logs = sorted(str(p) for p in SHARED_LOGS.glob("*.log.gz"))
+    if not logs:
+        raise UserError("no logs given, and no ../shared/datasets/carmen/ beside the repository")
+    relations = list(args.relations or [])
+    if len(relations) > len(logs):
+        raise UserError(f"{len(relations)} --relations files for {len(logs)} logs")
+    for i, log in enumerate(logs):
+        if not Path(log).exists():
+            raise UserError("no such log", log)
+        beside = Path(str(log).removesuffix(".gz").removesuffix(".log") + ".relations")
+        if i >= len(relations):
+            relations.append(str(beside) if beside.is_file() else None)
+        elif not Path(relations[i]).is_file():
+            raise UserError("no such relations file", relations[i])
+    jobs = [(log, m, relations[i]) for i, log in enumerate(logs) for m in args.methods]
+    with progress_bar("slam-logs", len(jobs)) as advance:
+        outcomes = run_jobs(score_method, jobs, engine, lambda o: advance(_describe(o)))
+    out, rows = summarise(outcomes)
+    print_table("SLAM on real logs: relation errors (Kümmerle et al. 2009), mean ± std and max",
+                ["log", "method", "trans m", "± std", "max m", "rot °", "± std", "max °", "ms/scan", "relations"], rows)
+    write_json(args.json, out)
+    return 0 if not out["failed"] else 1
+
+
+def summarise(outcomes: list[Outcome]) -> tuple[dict[str, Any], list[list[Any]]]:
+    """The JSON (log → method → figures, plus ``failed``) and the table's rows, published rows after each log."""
+    out: dict[str, Any] = {}
+    rows: list[list[Any]] = []
+    last = None
+    for o in outcomes:
+        log, method = log_name(o.job[0]), o.job[1]
+        if last is not None and log != last:
+            rows += _published(last)
+        last = log
+        if not o.ok:
+            rows.append([log, METHOD_LABELS[method], f"failed: {o.error}"[:60]] + [""] * 7)
+            continue
+        r = o.result
+        out.setdefault(log, {})[method] = r
+        rows.append([log, METHOD_LABELS[method], r["trans_err_mean_m"], r["trans_err_std_m"], r["trans_err_max_m"],
+                     r["rot_err_mean_deg"], r["rot_err_std_deg"], r["rot_err_max_deg"], 1e3 * r["seconds_per_scan"],
+                     r["relations"]])
+    if last is not None:
+        rows += _published(last)
+    out["failed"] = failures_table(outcomes)
+    return out, rows
+
+
+def _published(log: str) -> list[list[Any]]:
+    fig = PUBLISHED.get(log)
+    if fig is None:
+        return []
+    labels = ("published scan matching", "published RBPF", "published graph")
+    return [[log, label, m, s, math.nan, math.nan, math.nan, math.nan, math.nan, ""] for label, (m, s) in zip(labels, fig, strict=True)]
+
+
+def _describe(o: Outcome) -> str:
+    head = f"{log_name(o.job[0])} {o.job[1]}"
+    return f"{head}: failed" if not o.ok else f"{head}: {o.result['trans_err_mean_m']:.3f} m"

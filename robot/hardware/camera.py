@@ -1,0 +1,226 @@
+"""A UVC camera through OpenCV, rectified with the intrinsics of a ROS ``camera_info`` YAML file.
+
+``load_calibration(path)`` reads the file ROS's ``camera_calibration`` writes
+(``image_width``, ``image_height``, ``camera_matrix``, ``distortion_model``,
+``distortion_coefficients``, ``rectification_matrix``,
+``projection_matrix``), every mistake reported at ``file:line:col``.
+:class:`UvcCamera` grabs frames from ``cv2.VideoCapture(source)`` in a
+thread (a device index like ``0`` for ``/dev/video0``, a device path, or a
+video file: a file plays at ``rate`` and starts again when it ends), turns
+them RGB, and rectifies them as ROS's ``image_proc`` does: the undistorted
+image has the projection matrix's intrinsics (fx = P[0,0], fy = P[1,1],
+cx = P[0,2], cy = P[1,2]), which is what the contract's
+:class:`~homing.robot.types.CameraInfo` (no distortion) states. The
+distortion models: ``plumb_bob`` and ``rational_polynomial`` (OpenCV's
+radial-tangential), ``equidistant`` (OpenCV's fisheye).
+
+The camera is lost when no frame has come for ``silence`` seconds; the
+thread reopens it every second meanwhile.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from homing.robot.types import CameraImage, CameraInfo
+
+from homing.errors import UserError
+from homing.section import Section
+from homing.yamlfile import load
+
+MODELS = ("plumb_bob", "rational_polynomial", "equidistant")
+RETRY = 1.0  # [s] between attempts to reopen a lost camera
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A camera's calibration as ROS states it: K (3 × 3), D (N,), R (3 × 3), P (3 × 4), image size [px]."""
+
+    width: int
+    height: int
+    K: np.ndarray
+    D: np.ndarray
+    R: np.ndarray
+    P: np.ndarray
+    model: str = "plumb_bob"
+
+    def info(self, base_from_optical: np.ndarray) -> CameraInfo:
+        """The contract's intrinsics of the *rectified* image (the projection matrix's)."""
+        P = self.P
+        return CameraInfo(self.width, self.height, float(P[0, 0]), float(P[1, 1]), float(P[0, 2]),
+                          float(P[1, 2]), np.asarray(base_from_optical, dtype=float))  # fmt: skip
+
+
+def _matrix(sec: Section, key: str, rows: int, cols: int | None) -> np.ndarray:
+    sub = sec.section(key)
+    sub.only(("rows", "cols", "data"))
+    data = sub.raw("data")
+    n = len(data) if isinstance(data, list) else -1
+    want = rows * cols if cols is not None else n
+    if not isinstance(data, list) or n != want or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                          for v in data):  # fmt: skip
+        raise sub.error("data", f"'{key}.data' must be a list of {want if cols else 'N'} numbers")
+    shape = (rows, cols) if cols is not None else (n,)
+    if sub.has("rows") and sub.integer("rows") != (rows if cols is not None else 1):
+        raise sub.error("rows", f"'{key}.rows' must be {rows if cols is not None else 1}")
+    return np.asarray(data, dtype=float).reshape(shape)
+
+
+def load_calibration(path: str | Path) -> Calibration:
+    """Read a ROS ``camera_info`` YAML file; UserError at ``file:line:col`` when it is wrong."""
+    path = Path(path)
+    sec = Section(load(path), path, "camera info")
+    sec.only(("image_width", "image_height", "camera_name", "camera_matrix", "distortion_model",
+              "distortion_coefficients", "rectification_matrix", "projection_matrix"))  # fmt: skip
+    width, height = sec.integer("image_width", lo=1), sec.integer("image_height", lo=1)
+    K = _matrix(sec, "camera_matrix", 3, 3)
+    model = sec.string("distortion_model", "plumb_bob", choices=MODELS)
+    D = _matrix(sec, "distortion_coefficients", 1, None) if sec.has("distortion_coefficients") else np.zeros(5)
+    R = _matrix(sec, "rectification_matrix", 3, 3) if sec.has("rectification_matrix") else np.eye(3)
+    if sec.has("projection_matrix"):
+        P = _matrix(sec, "projection_matrix", 3, 4)
+    else:
+        P = np.hstack([K, np.zeros((3, 1))])
+    if not (K[0, 0] > 0 and K[1, 1] > 0 and P[0, 0] > 0 and P[1, 1] > 0):
+        raise sec.error("camera_matrix", "focal lengths must be positive")
+    if model == "equidistant" and len(D) != 4:
+        raise sec.error("distortion_coefficients", "the equidistant model takes 4 coefficients")
+    return Calibration(width, height, K, D, R, P, model)
+
+
+class Rectifier:
+    """Undistorts (H, W, 3) images of one calibration onto its projection matrix's pinhole camera."""
+
+    def __init__(self, cal: Calibration):
+        import cv2
+
+        size = (cal.width, cal.height)
+        newK = cal.P[:, :3]
+        if cal.model == "equidistant":
+            self.maps = cv2.fisheye.initUndistortRectifyMap(cal.K, cal.D, cal.R, newK, size, cv2.CV_16SC2)
+        else:
+            self.maps = cv2.initUndistortRectifyMap(cal.K, cal.D, cal.R, newK, size, cv2.CV_16SC2)
+        self.size = size
+
+    def __call__(self, image: np.ndarray) -> np.ndarray:
+        import cv2
+
+        if (image.shape[1], image.shape[0]) != self.size:
+            image = cv2.resize(image, self.size, interpolation=cv2.INTER_AREA)
+        return cv2.remap(image, self.maps[0], self.maps[1], cv2.INTER_LINEAR)
+
+
+class UvcCamera:
+    """A camera read by OpenCV in a thread; :meth:`latest` gives the newest rectified RGB frame."""
+
+    def __init__(self, source: int | str, calibration: Calibration, base_from_optical: np.ndarray,
+                 now: Callable[[], float], rate: float = 5.0, silence: float | None = None):
+        self.name = "camera"
+        self.source = source
+        self.info = calibration.info(base_from_optical)
+        self.rectify = Rectifier(calibration)
+        self.now = now
+        self.rate = rate  # [Hz] frames kept per second (a file is paced to it)
+        self.silence = silence if silence is not None else max(1.0, 5.0 / rate)
+        self.lock = threading.Lock()
+        self.image: CameraImage | None = None
+        self.frames = 0
+        self.last_frame = -float("inf")
+        self.connected = False
+        self.losses = 0
+        self.reconnects = 0
+        self._cap: Any = None  # a cv2.VideoCapture
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._is_file = isinstance(source, str) and Path(source).is_file()
+
+    def open(self) -> None:
+        """Open the source and start grabbing; UserError-free :class:`CameraError` if it cannot."""
+        if not self._open():
+            raise CameraError(f"cannot open video source {self.source!r}")
+        self._thread = threading.Thread(target=self._run, name="homing-camera", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        if self._cap is not None:
+            self._cap.release()
+            self._cap = None
+
+    @property
+    def lost(self) -> bool:
+        return not self.connected or self.now() - self.last_frame > self.silence
+
+    def latest(self) -> CameraImage | None:
+        with self.lock:
+            return self.image
+
+    def _open(self) -> bool:
+        import cv2
+
+        cap = cv2.VideoCapture(self.source)
+        if not cap.isOpened():
+            cap.release()
+            return False
+        self._cap = cap
+        self.connected = True
+        self.last_frame = self.now()
+        return True
+
+    def _run(self) -> None:
+        period = 1.0 / self.rate
+        next_keep = time.monotonic()
+        while not self._stop.is_set():
+            cap = self._cap
+            if cap is None:
+                if self._stop.wait(RETRY):
+                    break
+                if self._open():
+                    self.reconnects += 1
+                continue
+            ok, frame = cap.read()
+            if not ok or frame is None:
+                cap.release()
+                self._cap = None
+                if self._is_file:
+                    self._open()  # a file starts again: a test source, not a camera that died
+                    continue
+                self.connected = False
+                self.losses += 1
+                continue
+            wall = time.monotonic()
+            if self._is_file and wall < next_keep:
+                self._stop.wait(next_keep - wall)  # a file has no rate of its own: play it at `rate`
+            elif not self._is_file and wall < next_keep:
+                continue  # a live camera streams faster than we keep frames: drop this one
+            next_keep = max(next_keep + period, time.monotonic() - period)
+            self._keep(frame)
+
+    def _keep(self, frame: np.ndarray) -> None:
+        import cv2
+
+        rgb = cv2.cvtColor(frame, cv2.COLOR_BGR2RGB) if frame.ndim == 3 else frame
+        image = CameraImage(self.now(), self.rectify(rgb), self.info)
+        with self.lock:
+            self.image = image
+            self.frames += 1
+            self.last_frame = image.stamp
+
+
+class CameraError(Exception):
+    """The camera's source cannot be opened."""
+
+
+def check_calibration(path: str | Path, file: str | Path, line: int, col: int) -> Calibration:
+    """:func:`load_calibration`, with a missing file reported where the robot file names it."""
+    if not Path(path).is_file():
+        raise UserError(f"camera info file {path} does not exist", file, line, col)
+    return load_calibration(path)

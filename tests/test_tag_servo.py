@@ -1,0 +1,109 @@
+"""The tag servo reaches the staging pose within 5 cm / 3° from where a map drifted by 0.5 m / 10° left the robot."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from homing.navigation.tag_servo import (
+    ServoStatus,
+    Sighting,
+    TagServo,
+    _weighted_mean,
+    staging_in_tag,
+)
+from homing.perception.apriltag import TagDetector
+from homing.perception.tag_wall import TagPerception
+from homing.robot import Pose2
+from homing.robot.turtlebot import DOCKED_FROM_WALL
+from homing.sim import SimRobot, load_world
+
+TICK = 0.1  # [s]
+
+
+@pytest.fixture(scope="module")
+def lab():
+    return load_world("lab")
+
+
+def servo_from(world, start: Pose2, seed: int = 1) -> tuple[TagServo, Pose2, float]:
+    """Servo with the real detector on rendered frames; returns the servo, the true final pose and the time."""
+    robot = SimRobot(world, seed=seed, start=start)
+    seen = TagPerception(TagDetector())
+    servo = TagServo()
+    obs = robot.observe()
+    servo.start(obs.stamp, obs.odom.pose)
+    while obs.stamp < 60.0:
+        for m in seen.measure(obs):
+            if m.tag_id == world.dock_tag_id:
+                servo.see(Sighting(m.stamp, m.pose, m.covariance))
+        cmd = servo.step(obs.stamp, obs.odom.pose)
+        if servo.status in (ServoStatus.SUCCEEDED, ServoStatus.FAILED):
+            break
+        robot.command(cmd.v, cmd.omega)
+        robot.step(TICK)
+        obs = robot.observe()
+    final = robot.truth_pose()
+    robot.close()
+    return servo, final, obs.stamp
+
+
+# Where a drifted map's "staging pose" may leave the robot: 0.5 m off in any direction and ±10° turned.
+DRIFTS = [(0.0, 0.5, 10.0), (0.0, -0.5, -10.0), (0.35, 0.35, -10.0), (-0.35, -0.35, 10.0), (0.5, 0.0, 10.0),
+          (-0.35, 0.35, -10.0)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("dx", "dy", "dyaw"), DRIFTS)
+def test_reaches_staging_within_5_cm_and_3_deg_despite_a_drifted_map(lab, dx: float, dy: float, dyaw: float) -> None:
+    staging = lab.staging_pose(1.0)
+    start = staging.compose(Pose2(dx, dy, math.radians(dyaw)))
+    servo, final, t = servo_from(lab, start)
+    assert servo.status is ServoStatus.SUCCEEDED
+    err = staging.between(final)
+    assert math.hypot(err.x, err.y) <= 0.05
+    assert abs(math.degrees(err.theta)) <= 3.0
+    assert servo.sightings >= 3 and t < 40.0
+
+
+def test_staging_lies_on_the_tags_normal_facing_it() -> None:
+    goal = staging_in_tag(1.0)
+    assert goal == Pose2(DOCKED_FROM_WALL + 1.0, 0.0, math.pi)
+
+
+def test_sweeps_both_ways_then_fails_without_a_sighting() -> None:
+    servo = TagServo(search_angle=math.radians(60.0))
+    servo.start(0.0, Pose2())
+    yaw, t, extremes = 0.0, 0.0, []
+    while servo.status is ServoStatus.SEARCH and t < 60.0:
+        cmd = servo.step(t, Pose2(0.0, 0.0, yaw))
+        yaw += cmd.omega * TICK
+        extremes.append(yaw)
+        t += TICK
+    assert servo.status is ServoStatus.FAILED and servo.reason == "no_tag"
+    assert max(extremes) == pytest.approx(math.radians(60.0), abs=math.radians(4.0))
+    assert min(extremes) == pytest.approx(-math.radians(60.0), abs=math.radians(4.0))
+    assert abs(yaw) < math.radians(4.0)  # back where it started
+
+
+def test_a_sighting_is_placed_in_odom_at_its_image_stamp() -> None:
+    # The robot drives straight along x at 0.1 m/s; a sighting taken at t = 0.5 s arrives at t = 1.0 s.
+    servo = TagServo(goal_in_tag=Pose2(1.0, 0.0, math.pi))
+    servo.start(0.0, Pose2())
+    for k in range(1, 10):
+        servo.step(0.1 * k, Pose2(0.01 * k, 0.0, 0.0))
+    tag_in_base = Pose2(2.0, 0.0, math.pi)  # 2 m ahead, facing the robot
+    servo.see(Sighting(0.5, tag_in_base, np.diag([1e-4, 1e-4, 1e-4])))
+    servo.step(1.0, Pose2(0.10, 0.0, 0.0))
+    assert servo.goal is not None
+    # The tag stands at x = 0.05 + 2.0 in odom; the goal 1 m out from it, facing it.
+    assert servo.goal.x == pytest.approx(1.05, abs=1e-6) and servo.goal.y == pytest.approx(0.0, abs=1e-9)
+    assert abs(math.remainder(servo.goal.theta, 2 * math.pi)) < 1e-9
+
+
+def test_the_weighted_mean_follows_the_better_sighting_and_averages_headings_on_the_circle() -> None:
+    a, b = Pose2(0.0, 0.0, math.pi - 0.1), Pose2(1.0, 0.0, -math.pi + 0.1)
+    m = _weighted_mean([a, b], np.array([3.0, 1.0]))
+    assert m.x == pytest.approx(0.25)
+    assert abs(abs(m.theta) - math.pi) < 0.06  # near ±π, not near 0
