@@ -209,10 +209,11 @@ def run(args: argparse.Namespace) -> int:
             runner.bb.register_key(key="/map/grid", access=Access.READ)
         if live:
             with LiveView(mission) as view:
-                runner.on_tick = view.update
+                view.attach(runner)
                 result = runner.run()
                 view.update(runner, force=True)
         else:
+            plain.attach(runner)
             result = runner.run()
     finally:
         if recorder is not None:
@@ -225,11 +226,9 @@ def run(args: argparse.Namespace) -> int:
         _save_map(args, runner)
     cmd = result.final_command
     why = f" by {signal_name(received())}" if result.reason == "interrupted" else ""
-    print(
-        f"stopped: {result.reason}{why} at t={result.time:.2f} s after {result.ticks} ticks "
-        f"({result.rtf:.1f}× real time); root {result.root_status.value}"
-    )
-    print(f"final command v={cmd.v:.3f} m/s ω={cmd.omega:.3f} rad/s (robot stopped)")
+    print(f"stopped: {result.reason}{why} at t={result.time:.2f} s after {result.ticks} ticks "
+          f"({result.rtf:.1f}× real time)")  # two lines within 80 columns
+    print(f"final command v={cmd.v:.3f} m/s ω={cmd.omega:.3f} rad/s (robot stopped); root {result.root_status.value}")
     if result.reason == "interrupted":
         return exit_status(received())
     return {"success": 0, "time_limit": 0, "failure": 1}[result.reason]
