@@ -17,6 +17,7 @@ from homing.missions.runlog import MAGIC, RunLog
 from homing.errors import UserError
 
 BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+MAGIC_PREFIX = MAGIC.split(b" ")[0] + b" "  # "HOMINGLOG "
 
 
 def log_format(path: str | Path) -> str:
@@ -33,7 +34,7 @@ def log_format(path: str | Path) -> str:
             head = f.read(len(MAGIC))
     except OSError as err:
         raise UserError(f"cannot read log: {err.strerror or err}", p) from None
-    return "homing" if head == MAGIC else "carmen"
+    return "homing" if head.startswith(MAGIC_PREFIX) else "carmen"  # any version: RunLog says if it is too new
 
 
 def open_log(path: str | Path, scan_topic: str | None = None, odom_topic: str | None = None,

@@ -233,3 +233,7 @@ def test_a_log_of_a_newer_format_says_so(tmp_path):
     newer.write_bytes(b"HOMINGLOG 2\n" + path.read_bytes()[len(MAGIC):])
     with pytest.raises(UserError, match=r"newer.hlog:1:1: run log format version 2 is newer than this homing reads"):
         RunLog(newer)
+    from tests.conftest import homing_cli
+
+    code, _, err = homing_cli("replay", str(newer), "--slam")
+    assert code == 2 and "run log format version 2 is newer than this homing reads" in err
