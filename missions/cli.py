@@ -16,6 +16,7 @@ shell's status for the signal (130, 143, 129).
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import pkgutil
 import re
@@ -87,6 +88,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exit_status(received())
     except BrokenPipeError:
         return 0
+    except OSError as err:
+        if err.errno != errno.EIO:
+            raise
+        return exit_status(received()) if received() is not None else 1  # the terminal hung up under us
 
 
 if __name__ == "__main__":

@@ -100,7 +100,7 @@ def _batteries(policy: Any, obs: Any) -> list[Battery]:
         levels = policy.get(name) if isinstance(policy, dict) else None
         if reading is None and not levels:
             continue
-        percent = float(levels["percent"]) if levels and "percent" in levels else float(reading.percent)
+        percent = float(levels["percent"]) if levels and "percent" in levels else float(getattr(reading, "percent", 0.0))
         charging = bool(getattr(reading, "charging", False))
         if levels:
             out.append(Battery(name, percent, charging, levels.get("home"), float(levels.get("reserve", 0.0)),
@@ -165,16 +165,20 @@ def battery_bar(b: Battery, width: int) -> Text:
         marks[min(n - 1, int((b.home + b.reserve) / 100.0 * n))] = "│"
     if b.undock is not None:
         marks[min(n - 1, int(b.undock / 100.0 * n))] = "┊"
-    text.append("▕")
+    cells = []
     for i in range(n):
         if i in marks:
-            text.append(marks[i], style="bold white")
+            cells.append((marks[i], "bold white"))
         elif i + 1 <= filled:
-            text.append("█", style=colour)
-        elif i < filled:
-            text.append("▌", style=colour)
+            cells.append(("█", colour))
         else:
-            text.append("░", style="grey35")
+            cells.append(("▌", colour) if i < filled else ("░", "grey35"))
+    text.append("▕")
+    start = 0
+    for i in range(1, n + 1):  # one span per run of one style: the view redraws 8 times a second
+        if i == n or cells[i][1] != cells[start][1]:
+            text.append("".join(c for c, _ in cells[start:i]), style=cells[start][1])
+            start = i
     text.append("▏")
     return text
 

@@ -63,7 +63,7 @@ def block_any(mask: np.ndarray, k: int, rows: int, cols: int) -> np.ndarray:
     out = np.zeros((rows * k, cols * k), dtype=bool)
     h, w = min(mask.shape[0], rows * k), min(mask.shape[1], cols * k)
     out[:h, :w] = mask[:h, :w]
-    return out.reshape(rows, k, cols, k).any(axis=(1, 3))
+    return np.asarray(out.reshape(rows, k, cols, k).any(axis=(1, 3)), dtype=bool)
 
 
 def braille(dots: np.ndarray) -> np.ndarray:
@@ -166,7 +166,7 @@ class MiniMap:
         layer = np.zeros((height, width), np.int8)  # the topmost layer with a dot colours the character
         for i, mask in ((1, walls), (2, front), (3, trail)):
             layer[braille(mask[::-1]) != 0x2800] = i
-        bg = floor[::-1].reshape(height, 4, width, 2).any(axis=(1, 3))
+        bg = np.asarray(floor[::-1].reshape(height, 4, width, 2).any(axis=(1, 3)), dtype=bool)
         chars = np.where(layer > 0, code, ord(" ")).astype(np.int32)
         for at, char, style in ((goal, "◎", 4), (pose, None, 5)):
             cell = self._dot(layout, grid, at.x, at.y) if at is not None else None

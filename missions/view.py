@@ -189,13 +189,17 @@ class LiveView:
         self._statuses: dict[Any, Status] = {}  # every node's status at the last redraw of a running tree
         self._running: list[Any] = []  # ids on the running path at the last tick of a running tree
         self._tip: tuple[str, str] | None = None  # (name, feedback) of the running leaf then
+        self.gone = False  # the terminal went away: draw no more
 
     def __enter__(self) -> LiveView:
         self.live.__enter__()
         return self
 
     def __exit__(self, *exc: Any) -> None:
-        self.live.__exit__(*exc)
+        try:
+            self.live.__exit__(*exc)
+        except OSError:  # the terminal is gone (a hang-up): nothing left to restore
+            self.gone = True
 
     def attach(self, runner: Runner) -> None:
         """Let ``runner``'s blackboard client read what the view shows, and redraw after each of its ticks."""
@@ -224,7 +228,12 @@ class LiveView:
         self.last_draw = wall
         if running:
             self._statuses = {n.id: n.status for n in runner.mission.root.iterate()}
-        self.live.update(self.render(runner), refresh=True)
+        if self.gone:
+            return
+        try:
+            self.live.update(self.render(runner), refresh=True)
+        except OSError:  # the terminal hung up (SIGHUP follows): keep running, stop drawing
+            self.gone = True
 
     def halted_statuses(self, runner: Runner) -> dict[Any, Status] | None:
         """The statuses to draw for a tree halted by the stop (None while running or when it finished itself)."""

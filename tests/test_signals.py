@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
 import time
+import uuid
 from pathlib import Path
 
 import pytest
@@ -86,3 +88,31 @@ def test_a_stop_during_start_up_is_one_line(sig: str, tmp_path: Path) -> None:
     name = "Ctrl-C" if sig == "SIGINT" else sig
     assert err == f"homing run: interrupted by {name} before it finished\n"
     assert out == ""
+
+
+@pytest.mark.tmux
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed (.ci/run installs it)")
+def test_a_terminal_that_hangs_up_loses_nothing(tmp_path: Path) -> None:
+    """The live view's terminal closes under the run (an ssh drop): SIGHUP, and writes to it fail; all is saved."""
+    log, record, saved, err = (tmp_path / n for n in ("status.log", "run.hlog", "map.yaml", "err.txt"))
+    session = f"homing-{uuid.uuid4().hex[:8]}"
+    command = (f"cd {REPO} && {sys.executable} -m homing.missions.cli run explore --world lab --seed 1 --speed 20 "
+               f"--log {log} --record {record} --save-map {saved} 2> {err}")
+    subprocess.run(["tmux", "new-session", "-d", "-s", session, "-x", "80", "-y", "24", command], check=True)
+    try:
+        end = time.monotonic() + 120
+        while not (log.exists() and "SeedMap: INVALID -> RUNNING" in log.read_text()):
+            assert time.monotonic() < end, "the run never got going"
+            time.sleep(0.05)
+    finally:
+        subprocess.run(["tmux", "kill-session", "-t", session], capture_output=True)  # the terminal goes away
+    end = time.monotonic() + 120
+    while not saved.exists():
+        assert time.monotonic() < end, "the map was never saved"
+        time.sleep(0.05)
+    assert (load_map(saved).grid == FREE).sum() > 100
+    assert log.read_text().splitlines()[-1].endswith("-> INVALID"), "the tree was halted and the halts logged"
+    run = RunLog(record, salvage=True)
+    assert run.damage is None and run.commands()[-1][1].v == 0.0
+    assert "Traceback" not in err.read_text()
