@@ -340,8 +340,9 @@ class LiveView:
         text.append(f"{self.mission.name} ", style="bold")
         text.append(f"t {_clock(t)}  ×{self.rtf:.1f}")
         text.append(f"  tick {runner.ticks}", style="grey50")
-        if runner.mission.root.status != Status.RUNNING:
-            text.append(f"  stopped ({runner.mission.root.status.value})", style="bold red")
+        status = runner.mission.root.status
+        if status != Status.RUNNING:
+            text.append(f"  stopped ({'halted' if status == Status.INVALID else status.value})", style="bold red")
         text.truncate(width, overflow="ellipsis")
         return text
 
