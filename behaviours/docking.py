@@ -26,6 +26,7 @@ from homing.behaviours.keys import (
     CMD_VEL_KEY,
     DOCK_KEY,
     ENERGY_KEY,
+    FOCUS_KEY,
     IDLE_KEY,
     NAVIGATOR_KEY,
     OBSERVATION_KEY,
@@ -42,6 +43,7 @@ from homing.robot import ChargingSource, Observation
 from py_trees.common import Status
 
 CHARGE_POLL = 10.0  # [s] adapter time between looks at the batteries while charging
+FOCUS_AHEAD = 0.5  # [s] the servo asks for every camera frame this far ahead, renewed every tick
 
 
 def on_dock(obs: Observation | None) -> bool:
@@ -180,7 +182,7 @@ class ServoToStaging(_ReportsFailure):
         TIMEOUT_PARAM,
     )
     READS = (OBSERVATION_KEY, TAGS_KEY)
-    WRITES = (CMD_VEL_KEY, "$failure_key")
+    WRITES = (CMD_VEL_KEY, FOCUS_KEY, "$failure_key")
 
     def __init__(self, name: str, tag: int = 0, staging_distance: float = STAGING_DISTANCE,
                  xy_tolerance: float = 0.02, yaw_tolerance: float = math.radians(1.5),
@@ -204,6 +206,7 @@ class ServoToStaging(_ReportsFailure):
         obs = self.observation()
         if obs is None:
             return self.fail("no_observation")
+        self.write(FOCUS_KEY, obs.stamp + FOCUS_AHEAD)  # every frame counts while servoing
         for m in self.read(TAGS_KEY) or ():
             if m.tag_id == self.tag:
                 self.servo.see(Sighting(m.stamp, m.pose, m.covariance))

@@ -43,7 +43,7 @@ class Wait(LongAction):
     def on_running(self) -> Status:
         left = self.seconds - self.elapsed()
         self.feedback_message = f"{max(left, 0.0):.1f} s left"
-        return Status.SUCCESS if left <= 0 else Status.RUNNING
+        return Status.SUCCESS if self.has_run_for(self.seconds) else Status.RUNNING
 
 
 @register("Drive")
@@ -68,7 +68,7 @@ class Drive(LongAction):
         self.v, self.omega, self.seconds = float(v), float(omega), float(seconds)
 
     def on_running(self) -> Status:
-        if self.elapsed() >= self.seconds:
+        if self.has_run_for(self.seconds):
             return Status.SUCCESS
         self.drive(self.v, self.omega)
         self.feedback_message = f"v={self.v:.2f} m/s ω={self.omega:.2f} rad/s, {self.seconds - self.elapsed():.1f} s left"
@@ -246,6 +246,19 @@ class BatteryBelow(_BatteryCondition):
     """SUCCESS while the battery's percentage is strictly below ``percent`` (Nav2 ``IsBatteryLow``)."""
 
     ABOVE = False
+
+
+@register("BatteryCharging", kind="condition")
+class BatteryCharging(HomingBehaviour):
+    """SUCCESS while the base battery is charging, on the dock or an adapter (Nav2 ``IsBatteryCharging``; reads /robot/observation)."""
+
+    READS = (OBSERVATION_KEY,)
+
+    def update(self) -> Status:
+        obs = self.observation()
+        charging = obs is not None and obs.battery.charging
+        self.feedback_message = "charging" if charging else "not charging"
+        return Status.SUCCESS if charging else Status.FAILURE
 
 
 @register("MissionState")

@@ -26,7 +26,13 @@ from homing.robot.frames import wrap_angle
 from homing.robot.history import PoseHistory
 
 HISTORY = 2.0  # [s] of odometry kept to look up the pose at a scan's stamp
-MIN_MATCH_TRAVEL = 0.0  # [m] match every scan (cheap); raise to skip matching when standing still
+# A scan is matched and fused once the robot has moved this far or turned this much since the last one, or
+# this long has passed (gmapping's linearUpdate / angularUpdate / temporalUpdate, 1 m / 0.5 rad / off there:
+# its particles are costly; Hector SLAM updates its map every 0.4 m / 0.9 rad). Between them odometry carries
+# the pose, which it does to millimetres over a few centimetres; a standing robot still refreshes its map.
+UPDATE_TRAVEL = 0.1  # [m]
+UPDATE_TURN = 0.1  # [rad]
+UPDATE_PERIOD = 1.0  # [s]
 MAX_CORRECTION_XY = 0.30  # [m] a larger jump between consecutive scans is rejected as a false match
 MAX_CORRECTION_THETA = math.radians(10.0)  # [rad]
 WARMUP_SCANS = 3  # scans fused at the odometry pose before matching starts
@@ -43,6 +49,9 @@ TRACKING_PRIOR_THETA = math.radians(0.5)
 # Sub-cell Gauss–Newton refinement after the correlative search (scan_match): with the heading held by
 # the prior above it no longer slides along corridors, and it removes the search's 5 cm / 0.5° steps.
 TRACKING_REFINE = True
+# Consecutive matches reuse one likelihood field while the grid has taken at most this many scans since:
+# the field is most of a match's cost, and two scans more of map do not move a tracking match.
+FIELD_MAX_AGE = 2
 
 
 class GridSlam:
@@ -61,11 +70,14 @@ class GridSlam:
         grid: OccupancyGrid | None = None,
         max_correction: tuple[float, float] = (MAX_CORRECTION_XY, MAX_CORRECTION_THETA),
         match_range: float | None = None,
+        update_travel: float = UPDATE_TRAVEL,
+        update_turn: float = UPDATE_TURN,
+        update_period: float = UPDATE_PERIOD,
     ) -> None:
         self.grid = grid if grid is not None else OccupancyGrid(resolution)
         self.matcher: ScanMatcher | None = (
             (matcher or CorrelativeMatcher(prior_xy=TRACKING_PRIOR_XY, prior_theta=TRACKING_PRIOR_THETA,
-                                           refine=TRACKING_REFINE))
+                                           refine=TRACKING_REFINE, field_max_age=FIELD_MAX_AGE))
             if use_matcher
             else None
         )
@@ -79,6 +91,8 @@ class GridSlam:
         self.last_score = float("nan")
         self._last_scan_stamp = -math.inf
         self._odom = PoseHistory(HISTORY)
+        self.update_travel, self.update_turn, self.update_period = update_travel, update_turn, update_period
+        self._last_fused: tuple[float, Pose2] | None = None  # (stamp, odometry pose) of the last fused scan
 
     # ----------------------------------------------------------------- inputs
     def update(self, odom: Odometry, scan: Scan | None) -> bool:
@@ -87,10 +101,22 @@ class GridSlam:
         fused = False
         if scan is not None and scan.stamp > self._last_scan_stamp:
             self._last_scan_stamp = scan.stamp
-            self._fuse(scan, self._odom.at(scan.stamp))
-            fused = True
+            at = self._odom.at(scan.stamp)
+            if self._due(scan.stamp, at):
+                self._fuse(scan, at)
+                self._last_fused = (scan.stamp, at)
+                fused = True
         self.pose = self.map_to_odom.compose(odom.pose)
         return fused
+
+    def _due(self, stamp: float, odom_pose: Pose2) -> bool:
+        """Whether a scan taken at ``odom_pose`` is worth matching and fusing (see UPDATE_*)."""
+        if self._last_fused is None or self.scans_fused < WARMUP_SCANS:
+            return True
+        t0, p0 = self._last_fused
+        d = p0.between(odom_pose)
+        return (math.hypot(d.x, d.y) >= self.update_travel or abs(d.theta) >= self.update_turn
+                or stamp - t0 >= self.update_period or stamp < t0)
 
     # ------------------------------------------------------------------ core
     def _fuse(self, scan: Scan, odom_pose: Pose2) -> None:

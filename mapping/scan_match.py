@@ -54,6 +54,7 @@ GN_ANCHOR_XY = 0.05  # [m] std-dev of the pull towards the correlative optimum i
 GN_ANCHOR_THETA = math.radians(2.0)  # [rad]
 MIN_SCORE = 0.25  # mean field value the best pose must reach to be trusted
 MIN_POINTS = 30  # fewer scan end points than this: no match
+FIELD_MARGIN = 1.0  # [m] a reusable field is computed this much wider than one match needs
 
 
 @dataclass(frozen=True)
@@ -125,6 +126,7 @@ class CorrelativeMatcher:
         refine: bool = False,
         prior_xy: float = PRIOR_XY,
         prior_theta: float = PRIOR_THETA,
+        field_max_age: int = 0,
     ) -> None:
         self.window_xy = window_xy
         self.prior_xy = prior_xy  # [m]
@@ -134,6 +136,8 @@ class CorrelativeMatcher:
         self.sigma = sigma
         self.min_score = min_score
         self.refine = refine
+        self.field_max_age = field_max_age
+        self._cache: tuple[int, int, tuple[float, float], float, _Field, list[tuple[np.ndarray, float]]] | None = None
 
     def match(self, grid: OccupancyGrid, points: np.ndarray, prior: Pose2, max_range: float = 5.0) -> MatchResult:
         """Best pose of the scan ``points`` (M, 2) [m, base_link] in ``grid`` near ``prior`` [map].
@@ -148,18 +152,37 @@ class CorrelativeMatcher:
         if len(pts) < MIN_POINTS:
             return MatchResult(prior, 0.0, False)
         reach = min(float(np.max(np.hypot(pts[:, 0], pts[:, 1]))), max_range)
-        field = likelihood_field(grid, (prior.x, prior.y), reach + self.window_xy + 4 * self.sigma, self.sigma)
+        field, levels = self._field(grid, prior, reach + self.window_xy + 4 * self.sigma)
         sub = pts[:: max(1, len(pts) // MAX_POINTS)]
-        best = self._correlative(field, sub, prior)
+        best = self._correlative(field, levels, sub, prior)
         if self.refine:
             best = self._gauss_newton(field, pts, best, prior)
         score = float(_score(field, pts, best))
         return MatchResult(best, score, score >= self.min_score)
 
+    def _field(self, grid: OccupancyGrid, prior: Pose2, half: float) -> tuple[_Field, list[tuple[np.ndarray, float]]]:
+        """The likelihood field around ``prior`` and its max-pooled levels, reused while fresh enough.
+
+        With ``field_max_age`` > 0 a field is computed over a crop ``FIELD_MARGIN`` wider than needed and
+        reused for the next matches while the grid has changed at most that many times (each fused scan
+        changes it once) and the needed crop still lies inside it: the field is the bulk of a match's cost,
+        and a few scans more or less of map do not move a tracking match.
+        """
+        c = self._cache
+        if (self.field_max_age > 0 and c is not None and c[0] == id(grid)
+                and 0 <= grid.version - c[1] <= self.field_max_age
+                and abs(prior.x - c[2][0]) + half <= c[3] and abs(prior.y - c[2][1]) + half <= c[3]):
+            return c[4], c[5]
+        margin = FIELD_MARGIN if self.field_max_age > 0 else 0.0
+        field = likelihood_field(grid, (prior.x, prior.y), half + margin, self.sigma)
+        levels = [(_pool(field.values, 2**k), field.resolution * 2**k) for k in range(self.levels + 1)]
+        if self.field_max_age > 0:
+            self._cache = (id(grid), grid.version, (prior.x, prior.y), half + margin, field, levels)
+        return field, levels
+
     # ------------------------------------------------------------ correlative
-    def _correlative(self, field: _Field, pts: np.ndarray, prior: Pose2) -> Pose2:
-        res = field.resolution
-        levels = [(_pool(field.values, 2**k), res * 2**k) for k in range(self.levels + 1)]
+    def _correlative(self, field: _Field, levels: list[tuple[np.ndarray, float]], pts: np.ndarray,
+                     prior: Pose2) -> Pose2:
         # Top level: the whole window.
         top_vals, top_res = levels[-1]
         n_xy = max(1, int(math.ceil(self.window_xy / top_res)))

@@ -106,6 +106,8 @@ class MissionSource:
     tree_container: Any = None
     view_keys: list[str] = field(default_factory=list)
     files: list[Path] = field(default_factory=list)
+    blackboard: dict[Any, Any] = field(default_factory=dict)  # initial entries, keys as written
+    blackboard_locs: dict[Any, Loc] = field(default_factory=dict)
 
 
 def _where(container: Any, key: Any, *, value: bool = True) -> Loc:
@@ -285,6 +287,13 @@ def _top_level(doc: LocatedDict, path: Path, source: MissionSource, problems: Pr
         problems.add(path, doc.loc, "the mission has no 'tree:' (its root node)")
     else:
         source.tree, source.tree_container = doc["tree"], doc
+    if "blackboard" in doc and doc["blackboard"] is not None:
+        table = doc["blackboard"]
+        if not isinstance(table, LocatedDict):
+            problems.add(path, _where(doc, "blackboard"), "blackboard: needs a mapping of key: initial value")
+        else:
+            source.blackboard = dict(table)
+            source.blackboard_locs = {k: _where(table, k, value=False) for k in table}
     view = doc.get("view")
     if view is not None:
         keys = view.get("blackboard") if isinstance(view, LocatedDict) else None

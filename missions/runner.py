@@ -118,7 +118,8 @@ class Runner:
         for key in self.mission.source.view_keys:
             if key not in self.bb.remappings:
                 self.bb.register_key(key=key, access=Access.READ)
-        self._status: dict[Any, Status] = {n.id: n.status for n in self.mission.root.iterate()}
+        self._nodes = list(self.mission.root.iterate())
+        self._status: dict[Any, Status] = {n.id: n.status for n in self._nodes}
         self._names = {n.id: n.name for n in self.mission.root.iterate()}
         self.tree.visitors.append(_ChangeVisitor(self))
         self._setup_done = False
@@ -144,6 +145,10 @@ class Runner:
                 client.register_key(key=key, access=Access.READ)
             service.setup(self.robot, client)
             self.services.append(service)
+        initial = py_trees.blackboard.Client(name="mission:blackboard")
+        for key, value in self.mission.blackboard.items():  # the mission's blackboard: entries
+            initial.register_key(key=key, access=Access.WRITE)
+            initial.set(key, value, overwrite=True)
         self.tree.setup(robot=self.robot, seed=self.seed)
         self.start = self.now = float(self.robot.clock.now())
         self.wall_start = time.monotonic()
@@ -253,8 +258,10 @@ class Runner:
                 self.on_change(StatusChange(self.now, node.name, old, node.status))
 
     def _sweep(self) -> None:
-        for node in self.mission.root.iterate():
-            self.record(node)
+        statuses = self._status
+        for node in self._nodes:  # a flat list: walking py_trees' recursive iterate() every tick costs more
+            if node.status is not statuses.get(node.id, Status.INVALID):
+                self.record(node)
 
     def read(self, key: str) -> Any:
         """A blackboard entry for the view (None when unset)."""

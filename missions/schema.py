@@ -32,6 +32,7 @@ TOP_KEYS: dict[str, str] = {
     "params": "mission parameters with defaults, used in the tree as $name",
     "include": "other mission files whose subtrees this one uses (paths relative to this file)",
     "subtrees": "named trees with parameters, used like nodes",
+    "blackboard": "initial blackboard entries the runner writes before the first tick: {key: value}",
     "tree": "the root node",
     "view": "live-view options: {blackboard: [keys to show]}",
 }
@@ -222,6 +223,9 @@ def _param_schema(param: Param) -> dict[str, Any]:
         elif t is list:
             alts.append({"type": "array"})
     alts.append({"type": "string", "pattern": r"^\$[A-Za-z_][A-Za-z0-9_]*$"})  # $name substitution
+    alts.append({"type": "string", "pattern": r"^\{\s*[@/A-Za-z_=][A-Za-z0-9_./@-]*\s*\}$"})  # "{key}": a port
+    alts.append({"type": "object", "minProperties": 1, "maxProperties": 1,
+                 "additionalProperties": {"type": "null"}})  # {key} unquoted: YAML's one-entry mapping
     out: dict[str, Any] = {"anyOf": alts}
     doc = param.doc + (f" [{param.unit}]" if param.unit else "")
     if doc:
@@ -242,7 +246,8 @@ def _node_schema(spec: NodeSpec, ref: str) -> dict[str, Any]:
             props[slot] = {"type": "array", "minItems": 1, "items": {"$ref": ref}}
         else:
             props[slot] = {"$ref": ref}
-        required.append(slot)
+        if slot not in spec.optional:
+            required.append(slot)
     body: dict[str, Any] = {"type": "object", "properties": props, "additionalProperties": False}
     if required:
         body["required"] = required
@@ -340,6 +345,7 @@ def json_schema(subtrees: Mapping[str, Iterable[str]] | None = None) -> dict[str
             "include": {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}]},
             "tree": {"description": TOP_KEYS["tree"]},
             "subtrees": {"description": "named trees with parameters, used like nodes"},
+            "blackboard": {"type": "object", "description": TOP_KEYS["blackboard"]},
             "view": {"type": "object", "properties": {"blackboard": {"type": "array", "items": {"type": "string"}}},
                      "additionalProperties": False},
         },

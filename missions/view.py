@@ -27,7 +27,7 @@ and every ``FACTS_PERIOD`` of adapter time a line of the same facts.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, TextIO
 
 from homing.missions.facts import (
@@ -201,10 +201,10 @@ class LiveView:
         except OSError:  # the terminal is gone (a hang-up): nothing left to restore
             self.gone = True
 
-    def attach(self, runner: Runner) -> None:
-        """Let ``runner``'s blackboard client read what the view shows, and redraw after each of its ticks."""
+    def attach(self, runner: Runner) -> Callable[[Runner], None]:
+        """Let ``runner``'s blackboard client read what the view shows; the callback to call after each tick."""
         register_keys(runner)
-        runner.on_tick = self.update
+        return self.update
 
     def update(self, runner: Runner, *, force: bool = False) -> None:
         running = runner.mission.root.status == Status.RUNNING
@@ -369,9 +369,10 @@ class PlainLog:
     def __call__(self, change: StatusChange) -> None:
         self.stream.write(change.line() + "\n")
 
-    def attach(self, runner: Runner) -> None:
+    def attach(self, runner: Runner) -> Callable[[Runner], None]:
+        """Let ``runner``'s client read the facts; the callback to call after each tick (a fact line when due)."""
         register_keys(runner)
-        runner.on_tick = self.tick
+        return self.tick
 
     def tick(self, runner: Runner) -> None:
         t = runner.now - runner.start

@@ -39,7 +39,7 @@ from homing.robot.frames import wrap_angle
 from homing.robot.turtlebot import LIDAR_RATE, RobotLimits, bumper_sector
 from homing.robot.types import Bumpers, CameraImage, Observation, Odometry, Pose2, Scan, Twist2
 from homing.sim.battery import Battery
-from homing.sim.camera import CAMERA_RATE, HEIGHT, WIDTH, SimCamera
+from homing.sim.camera import CAMERA_RATE, HEIGHT, WIDTH, RenderedOnDemand, SimCamera
 from homing.sim.dock import Dock
 from homing.sim.faults import Fault
 from homing.sim.lidar import SimLidar
@@ -47,12 +47,13 @@ from homing.sim.odometry import SlipModel, WheelOdometry, arc
 from homing.sim.scene import BUMP_DEPTH, OBSTACLE_SIZE, Scene
 from homing.sim.world import World
 
-PHYSICS_DT = 0.02  # [s] longest sub-step: 14 mm at 0.7 m/s, well under a wall's thickness
+PHYSICS_DT = 0.05  # [s] longest sub-step: 35 mm at 0.7 m/s, under a wall's thickness
 PUSH_ITERATIONS = 4  # collision resolution passes per sub-step
 BUMP_HIT_SPEED = 0.5  # [m/s] a bumper_hit obstacle's approach speed
 BUMP_HIT_BEARING = {"left": math.radians(60.0), "centre": 0.0, "right": math.radians(-60.0)}
 KIDNAP_CLEARANCE = 0.35  # [m] a random kidnap lands at least this far from walls
 IDLE_DT = 1.0  # [s] longest sub-step of an idle step (no command, nothing moving)
+CAMERA_STREAM = 2  # seed stream of the camera's pixel noise (frame by frame)
 MOVING_FAULTS = ("bumper_hit", "kidnap")  # faults that move something: no idle step across them
 
 
@@ -91,7 +92,7 @@ class SimRobot:
         self.limits = RobotLimits()
         self.physics_dt = physics_dt
         streams = np.random.SeedSequence(self.seed).spawn(4)
-        self._rng_odom, self._rng_lidar, self._rng_camera, self._rng_fault = (
+        self._rng_odom, self._rng_lidar, _, self._rng_fault = (
             np.random.default_rng(s) for s in streams
         )
         self.scene = Scene(world, visuals=camera)
@@ -112,6 +113,7 @@ class SimRobot:
         self._image: CameraImage | None = None
         self._next_scan = 0.0
         self._next_frame = 0.0
+        self._frames = 0  # frames taken (rendered or not): each one's pixel noise is seeded by its number
         self._closed = False
         self._sense()
 
@@ -257,9 +259,17 @@ class SimRobot:
         self._next_frame += self.camera_period
         off = any(f.name == "camera_off" and f.active(at) for f in self.faults)
         if not off and self.camera.visible_tags(self._pose, self.world.tags):
-            self._image = self.camera.render(self._pose, at, self._rng_camera)
+            self._image = self._frame(self._pose, at)
         else:
             self._image = None
+
+    def _frame(self, pose: Pose2, at: float) -> CameraImage:
+        """The frame taken at ``pose`` and ``at`` [s], rendered when first read, with noise of its own seed."""
+        camera = self.camera
+        assert camera is not None
+        self._frames += 1
+        rng = np.random.default_rng([self.seed, CAMERA_STREAM, self._frames])
+        return RenderedOnDemand(at, camera.info, lambda: camera.render(pose, at, rng).image)
 
     def render(self) -> CameraImage:
         """Render a frame now whatever is in view (demos, tests); does not change observations."""

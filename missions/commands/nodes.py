@@ -60,8 +60,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _details(spec: object, describe: object, indent: str = "  ") -> None:
     slots = getattr(spec, "child_slots", ())
+    optional = getattr(spec, "optional", ())
     if slots:
-        print(f"{indent}children: {', '.join(slots)}")
+        print(f"{indent}children: {', '.join(s + (' (optional)' if s in optional else '') for s in slots)}")
     for p in getattr(spec, "params", ()):
         print(f"{indent}{describe(p)}")  # type: ignore[operator]
     for label, keys in (("reads", getattr(spec, "reads", ())), ("writes", getattr(spec, "writes", ()))):

@@ -48,6 +48,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="with --record: also log the camera images (JPEG; exported to MCAP by 'homing replay')")
     parser.add_argument("--save-map", metavar="PATH", type=output_map("--save-map"),
                         help="save the final /map/grid as a map_server map (PATH.yaml + .pgm)")
+    parser.add_argument(
+        "--serve", metavar="[HOST:]PORT",
+        help="stream the tree to followers ('homing view --attach HOST:PORT'); binds 127.0.0.1 unless given a host",
+    )  # fmt: skip
     add_set_argument(parser)
     parser.set_defaults(func=run)
 
@@ -169,6 +173,25 @@ def check_timing(rate: float, until: float | None) -> None:
         raise UserError(f"--until {until:g} s is shorter than one tick ({1.0 / rate:g} s at {rate:g} Hz)")
 
 
+def _server(args: argparse.Namespace, mission: Any) -> Any:
+    """The tree server for ``--serve`` (bound before the run starts, so a taken port fails at once), or None."""
+    if not args.serve:
+        return None
+    from homing.missions.remote import TreeServer, parse_address
+    from homing.missions.view import LiveView
+
+    from homing.errors import UserError
+
+    try:
+        host, port = parse_address(args.serve)
+    except ValueError as err:
+        raise UserError(f"--serve: {err}") from None
+    server = TreeServer(host, port, lambda console: LiveView(mission, console))
+    print(f"serving the tree on {server.host}:{server.port} (follow with: homing view --attach {server.host}:{server.port})",
+          file=sys.stderr, flush=True)  # fmt: skip
+    return server
+
+
 def run(args: argparse.Namespace) -> int:
     from homing.missions.commands.check import overrides
     from homing.missions.compiler import compile_mission
@@ -198,6 +221,7 @@ def run(args: argparse.Namespace) -> int:
         if not live:
             plain(change)
 
+    server = _server(args, mission)
     robot = recorder = None
     try:
         robot = _adapter(args)
@@ -207,15 +231,26 @@ def run(args: argparse.Namespace) -> int:
                         recorder=recorder, truth=truth)
         if args.save_map:
             runner.bb.register_key(key="/map/grid", access=Access.READ)
+        callbacks: list[Any] = [server.publish] if server is not None else []  # after each tick, in order
+
+        def on_tick(r: Any) -> None:
+            for callback in callbacks:
+                callback(r)
+
+        runner.on_tick = on_tick
         if live:
             with LiveView(mission) as view:
-                view.attach(runner)
+                callbacks.append(view.attach(runner))
                 result = runner.run()
                 view.update(runner, force=True)
         else:
-            plain.attach(runner)
+            callbacks.append(plain.attach(runner))
             result = runner.run()
+        if server is not None:
+            server.publish(runner, force=True)
     finally:
+        if server is not None:
+            server.close()
         if recorder is not None:
             recorder.close()
         if robot is not None:
