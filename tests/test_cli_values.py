@@ -71,7 +71,7 @@ def _mission(tmp_path: Path, node: str, rate: str = "10", services: str = "[]") 
         ("BatteryBelow: {percent: 120}", "120", "BatteryBelow: 'percent' must be at most 100%, not 120%"),
         ("NavigateToPose: {x: 1, y: 2, xy_tolerance: 0}", "0}", "'xy_tolerance' must be above 0 m, not 0 m"),
         ("timeout: {seconds: 0, child: {Wait: 1}}", "0,", "timeout: 'seconds' must be above 0 s, not 0 s"),
-        ("retry: {attempts: 0, child: {Wait: 1}}", "0,", "retry: 'attempts' must be at least 1, not 0"),
+        ("repeat: {times: -2, child: {Wait: 1}}", "-2,", "repeat: 'times' must be at least -1, not -2"),
     ],
 )
 def test_physically_meaningless_parameters_are_file_line_col_errors(tmp_path: Path, node: str, value: str,

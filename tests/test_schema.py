@@ -85,7 +85,7 @@ def test_bounds_and_units_are_in_the_schema() -> None:
     ok = {"services": [], "tree": {"sequence": [{"BackUp": {"distance": "40 cm", "speed": 0.1}}, {"Wait": "2 min"}]}}
     assert GENERIC.is_valid(ok)
     for bad in ({"BackUp": {"distance": -0.4}}, {"BackUp": {"distance": "-40 cm"}}, {"Wait": "2 parsecs"},
-                {"BatteryBelow": {"percent": 120}}, {"retry": {"attempts": 0, "child": "Stop"}}):
+                {"BatteryBelow": {"percent": 120}}, {"repeat": {"times": -2, "child": "Stop"}}):
         assert not GENERIC.is_valid({"services": [], "tree": bad}), bad
     assert not GENERIC.is_valid({"services": [], "rate": 0.001, "tree": "Stop"})
 
