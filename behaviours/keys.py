@@ -12,6 +12,7 @@ STATE_KEY = "/mission/state"  # lifecycle state shown in the live view
 GRID_KEY = "/map/grid"  # homing.mapping.grid.OccupancyGrid
 POSE_KEY = "/map/pose"  # Pose2, base_link in map
 MAP_TO_ODOM_KEY = "/map/map_to_odom"  # Pose2
+LOCALIZED_KEY = "/map/localized"  # bool: False while the grid SLAM has lost the robot and searches the map
 NAVIGATOR_KEY = "/nav/navigator"  # homing.navigation.Navigator
 EXPLORE_GOAL_KEY = "/explore/goal"  # Pose2 in map or None, written by the Explore leaf
 TAGS_KEY = "/perception/tags"  # this tick's tag measurements in base_link

@@ -59,11 +59,21 @@ FIELD_MARGIN = 1.0  # [m] a reusable field is computed this much wider than one 
 
 @dataclass(frozen=True)
 class MatchResult:
-    """The matched pose of ``base_link`` in ``map``, its mean field score in [0, 1], and whether to trust it."""
+    """The matched pose of ``base_link`` in ``map``, its mean field score in [0, 1], and whether to trust it.
+
+    ``known`` is the share of the scan's end points that land on cells the
+    grid has observed, and ``known_score`` their mean field score: a scan of
+    new ground lands on unknown cells (nothing to match, nothing wrong),
+    while one that lands on observed cells far from any mapped wall does not
+    fit the map (a wrong pose — a kidnapped robot — or a changed world).
+    """
 
     pose: Pose2
     score: float
     ok: bool
+    known: float = 0.0
+    known_score: float = 0.0
+    known_points: int = 0
 
 
 class ScanMatcher(Protocol):
@@ -158,7 +168,8 @@ class CorrelativeMatcher:
         if self.refine:
             best = self._gauss_newton(field, pts, best, prior)
         score = float(_score(field, pts, best))
-        return MatchResult(best, score, score >= self.min_score)
+        known, known_score = _known_fit(field, pts, best)
+        return MatchResult(best, score, score >= self.min_score, known, known_score, int(round(known * len(pts))))
 
     def _field(self, grid: OccupancyGrid, prior: Pose2, half: float) -> tuple[_Field, list[tuple[np.ndarray, float]]]:
         """The likelihood field around ``prior`` and its max-pooled levels, reused while fresh enough.
@@ -310,6 +321,16 @@ def _known(field: _Field, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     out = np.zeros(len(x))
     out[ok] = field.known[row[ok], col[ok]]
     return out
+
+
+def _known_fit(field: _Field, pts: np.ndarray, pose: Pose2) -> tuple[float, float]:
+    """(share of points on observed cells, their mean field value) with the scan placed at ``pose``."""
+    wpts = pose.transform_points(pts)
+    k = _known(field, wpts[:, 0], wpts[:, 1]) > 0
+    if not k.any():
+        return 0.0, 0.0
+    m, _, _ = _bilinear(field, wpts[k, 0], wpts[k, 1])
+    return float(k.mean()), float(m.mean())
 
 
 def _score(field: _Field, pts: np.ndarray, pose: Pose2) -> float:
