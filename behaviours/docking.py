@@ -30,6 +30,7 @@ from homing.behaviours.keys import (
     IDLE_KEY,
     NAVIGATOR_KEY,
     OBSERVATION_KEY,
+    SAVE_KEY,
     TAGS_KEY,
 )
 from homing.behaviours.motion import FAILURE_KEY, FAILURE_PARAM, NavigateToPose, _ReportsFailure
@@ -303,3 +304,21 @@ class Charge(_ReportsFailure):
         self.feedback_message = "charging: " + ", ".join(waiting) if waiting else "waiting for the energy policy"
         self.write(IDLE_KEY, obs.stamp + self.poll)
         return Status.RUNNING
+
+
+@register("SaveRun")
+class SaveRun(HomingBehaviour):
+    """Ask the runner to save a snapshot to the run directory after this tick (``/runner/save``) and SUCCEED.
+
+    What is kept (the map, the tags' estimates, the counters, the dock) and
+    where is the runner's business (``homing run --run-dir``,
+    :mod:`homing.lifecycle.rundir`); without a run directory it does nothing.
+    The persistent mission saves at every dock.
+    """
+
+    WRITES = (SAVE_KEY,)
+
+    def update(self) -> Status:
+        self.write(SAVE_KEY, True)
+        self.feedback_message = "snapshot requested"
+        return Status.SUCCESS

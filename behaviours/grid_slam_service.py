@@ -83,6 +83,22 @@ class GridSlamService:
         self.bb.set(MAP_TO_ODOM_KEY, self.slam.map_to_odom, overwrite=True)
         self.bb.set(LOCALIZED_KEY, not self.slam.lost, overwrite=True)
 
+    def snapshot(self, snap: Any) -> None:
+        """Keep the grid in a run directory's snapshot (:mod:`homing.lifecycle.rundir`)."""
+        snap.grid = self.slam.grid.copy()
+
+    def restore(self, snap: Any, obs: Observation) -> None:
+        """Start from a snapshot's grid: on the dock, at the dock's pose; anywhere else, lost (it finds itself)."""
+        if snap.grid is None:
+            return
+        self.slam.adopt(snap.grid)
+        if obs.battery.on_dock and snap.dock is not None:
+            self.slam.set_pose(snap.dock, obs.odom.pose)
+        else:
+            self.slam.lost = True
+        self.published = self.slam.grid if self.publish_period == 0 else self.slam.grid.copy()
+        self.bb.set(GRID_KEY, self.published, overwrite=True)
+
     def shutdown(self) -> None:
         """Publish the final grid, so whoever saves the map at the end gets every scan."""
         if self.bb is not None:

@@ -22,3 +22,4 @@ ENERGY_KEY = "/energy/policy"  # {battery: {percent, undock, home, reserve}} [%]
 HOME_DISTANCE_KEY = "/energy/distance_home"  # [m] planned travel distance to the staging pose
 CYCLES_KEY = "/mission/cycles"  # int: dock cycles completed
 IDLE_KEY = "/runner/idle_until"  # [s] adapter time until which the tree has nothing to do (set per tick)
+SAVE_KEY = "/runner/save"  # bool: a leaf asks the runner to save a snapshot to the run directory after this tick

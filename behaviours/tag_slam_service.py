@@ -150,6 +150,15 @@ class TagSlamService:
         self.slam.flush()
         return self.slam.landmark_estimates()
 
+    def snapshot(self, snap: Any) -> None:
+        """Keep the tags' estimates (the trip's graph folded into priors) in a run directory's snapshot."""
+        snap.landmarks = self.landmark_estimates()
+
+    def restore(self, snap: Any, obs: Observation) -> None:
+        """Start a new graph from a snapshot's tag estimates (the map frame is the grid's, set at the first update)."""
+        if snap.landmarks:
+            self.new_session(None, priors=dict(snap.landmarks))
+
     def new_session(self, map_to_odom: Pose2 | None = None,
                     priors: dict[int, tuple[Pose2, Any]] | None = None) -> None:
         """Fold the trip's graph into priors on the tags (or take ``priors``) and start a new graph from them."""

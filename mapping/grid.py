@@ -208,6 +208,10 @@ class OccupancyGrid:
         self.logodds[:] = 0.0
         self._touch()
 
+    def clear_cache(self) -> None:
+        """The log-odds were changed from outside (read back from a file): drop what was derived from them."""
+        self._touch()
+
     def _touch(self) -> None:
         self._data = None
         self.version += 1

@@ -188,6 +188,11 @@ class GridSlam:
             self.lost = False
             self.misfits = 0
 
+    def adopt(self, grid: OccupancyGrid) -> None:
+        """Carry on with ``grid`` (a saved map): scans are matched against it from the first one."""
+        self.grid = grid
+        self.scans_fused = max(self.scans_fused, WARMUP_SCANS)
+
     def set_pose(self, pose: Pose2, odom_pose: Pose2) -> None:
         """The robot is known to stand at ``pose`` in map (docked, or restarted on a saved map): track from there."""
         self.map_to_odom = pose.compose(odom_pose.inverse())

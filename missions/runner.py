@@ -33,7 +33,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import py_trees
-from homing.behaviours.keys import EXPLORE_GOAL_KEY, IDLE_KEY, NAVIGATOR_KEY, TAGS_KEY
+from homing.behaviours.keys import (
+    CYCLES_KEY,
+    DOCK_KEY,
+    EXPLORE_GOAL_KEY,
+    IDLE_KEY,
+    NAVIGATOR_KEY,
+    SAVE_KEY,
+    TAGS_KEY,
+)
 from homing.behaviours.registry import Service
 from homing.missions.compiler import CompiledMission
 from homing.robot import Observation, RobotAdapter, Twist2
@@ -104,13 +112,18 @@ class Runner:
     changes: int = 0
     recorder: Any = None  # a homing.missions.runlog.Recorder (or None: nothing is logged)
     truth: Callable[[], Any] | None = None  # the simulator's true pose, for the log only
+    run_dir: Any = None  # a homing.lifecycle.rundir.RunDir: a snapshot is saved there when a leaf asks (SaveRun)
+    resume: Any = None  # a homing.lifecycle.rundir.Snapshot to start from (--resume)
+    meta: dict[str, Any] = field(default_factory=dict)  # what the run is (mission, world, seed), kept in snapshots
+    snapshots: int = 0
 
     def __post_init__(self) -> None:
         # py_trees keeps one blackboard per process: a run starts from an empty one, not from the last run's values.
         py_trees.blackboard.Blackboard.storage.clear()
         self.tree = py_trees.trees.BehaviourTree(self.mission.root)
         self.bb = py_trees.blackboard.Client(name="runner")
-        for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state", IDLE_KEY):
+        for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state", IDLE_KEY, SAVE_KEY, CYCLES_KEY,
+                    DOCK_KEY):
             self.bb.register_key(key=key, access=Access.WRITE)
         for key in (TAGS_KEY, NAVIGATOR_KEY, EXPLORE_GOAL_KEY):  # logged with --record
             if key not in self.bb.remappings:
@@ -135,7 +148,11 @@ class Runner:
         return 1.0 / (self.rate or self.mission.rate)
 
     def setup(self) -> None:
-        """Build and set up the services, then the tree (``setup(robot=..., seed=...)``)."""
+        """Build and set up the services, then the tree (``setup(robot=..., seed=...)``); restore ``resume``."""
+        if self.resume is not None:  # what the mission counted and where the dock is, before anyone reads them
+            self.bb.set(CYCLES_KEY, int(self.resume.cycles), overwrite=True)
+            if self.resume.dock is not None:
+                self.bb.set(DOCK_KEY, self.resume.dock, overwrite=True)
         for spec, params in self.mission.services:
             service = spec.factory(**params)
             client = py_trees.blackboard.Client(name=f"service:{spec.name}")
@@ -149,6 +166,12 @@ class Runner:
         for key, value in self.mission.blackboard.items():  # the mission's blackboard: entries
             initial.register_key(key=key, access=Access.WRITE)
             initial.set(key, value, overwrite=True)
+        if self.resume is not None:
+            obs = self.robot.observe()
+            for service in self.services:
+                restore = getattr(service, "restore", None)
+                if restore is not None:
+                    restore(self.resume, obs)
         self.tree.setup(robot=self.robot, seed=self.seed)
         self.start = self.now = float(self.robot.clock.now())
         self.wall_start = time.monotonic()
@@ -172,8 +195,11 @@ class Runner:
             rec.record_tags(obs.stamp, self.read(TAGS_KEY) or [])
         self.bb.set("/cmd_vel", None, overwrite=True)
         self.bb.set(IDLE_KEY, None, overwrite=True)
+        self.bb.set(SAVE_KEY, False, overwrite=True)
         self.tree.tick()
         self._sweep()
+        if self.run_dir is not None and self.read(SAVE_KEY):
+            self.save_snapshot()
         cmd = self.bb.get("/cmd_vel")
         self.last_command = self.robot.command(cmd.v, cmd.omega) if isinstance(cmd, Twist2) else self.robot.command(0.0, 0.0)
         if rec is not None:
@@ -228,6 +254,22 @@ class Runner:
         self.tree.shutdown()
         if self.on_tick is not None:
             self.on_tick(self)
+
+    def save_snapshot(self) -> Any:
+        """Save what the robot keeps (services' state, counters, the dock, the simulator's) to ``run_dir``."""
+        from homing.lifecycle.rundir import Snapshot
+
+        snap = Snapshot(time=self.now, cycles=int(self.read(CYCLES_KEY) or 0), dock=self.read(DOCK_KEY),
+                        meta=dict(self.meta))
+        for service in self.services:
+            keep = getattr(service, "snapshot", None)
+            if keep is not None:
+                keep(snap)
+        state = getattr(self.robot, "state", None)
+        snap.sim = state() if callable(state) else None
+        folder = self.run_dir.save(snap)
+        self.snapshots += 1
+        return folder
 
     def next_step(self) -> float:
         """Seconds of adapter time to the next tick: one period, or up to the time a leaf said it may idle to."""

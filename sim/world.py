@@ -17,6 +17,7 @@ radians, paths relative to the file)::
       - {x0: 1.0, y0: 1.0, x1: 2.0, y1: 3.0, slip: 4.0}
     battery: {base: {percent: 100}, computer: {percent: 90}}   # see homing.sim.battery
     faults: [{name: kidnap, at: 120.0, to: [0.0, 0.0, 0.0]}]   # see homing.sim.faults
+    events: [{kind: box, start: 600, end: 4000, x: 3.0, y: 4.0}]   # world changes, see homing.sim.events
 
 A bare map_server YAML becomes a world with the dock placed by
 :func:`homing.sim.placement.place_dock`, the robot started docked and no tags.
@@ -36,6 +37,7 @@ import numpy as np
 from homing.robot.types import Pose2
 from homing.sim.battery import BASE_DEFAULT, COMPUTER_DEFAULT, BatteryParams, params_from_section
 from homing.sim.dock import Dock
+from homing.sim.events import Change, change_from_section
 from homing.sim.faults import Fault, fault_from_section
 from homing.sim.placement import main_component, place_dock, place_tags, reachable_from
 from homing.sim.tags import CELLS, TAG_HEIGHT, TAG_IDS, TAG_SIZE, WALL_OFFSET, Tag
@@ -47,7 +49,8 @@ from homing.section import Section, section_at
 from homing.yamlfile import LocatedDict, load
 
 WORLDS_DIR = Path(__file__).resolve().parent / "worlds"
-_KEYS = ("name", "doc", "map", "wall_height", "dock", "dock_tag", "start", "tags", "patches", "battery", "faults")
+_KEYS = ("name", "doc", "map", "wall_height", "dock", "dock_tag", "start", "tags", "patches", "battery", "faults",
+         "events")
 MIN_WALL_HEIGHT = 1.0  # [m] the lidar at 0.5 m must never graze a wall's top
 WALL_REACH = 0.10  # [m] (or 1.5 cells, if more) a dock's back or a tag may stand off its wall's face
 
@@ -88,6 +91,7 @@ class World:
     faults: tuple[Fault, ...] = ()
     wall_height: float = WALL_HEIGHT
     source: Path | None = None
+    events: tuple[Change, ...] = ()
     _cache: dict = field(default_factory=dict, compare=False, repr=False, init=False)
 
     @property
@@ -234,8 +238,13 @@ def _from_world_file(path: Path, doc: LocatedDict) -> World:
         for item, loc in top.items("faults"):
             faults.append(fault_from_section(section_at(item, loc, path, "a fault")))
 
+    events = []
+    if top.has("events"):
+        for item, loc in top.items("events"):
+            events.append(change_from_section(section_at(item, loc, path, "a world change")))
+
     return World(name, data, dock, tuple(tags), tag_id, start, tuple(patches), base, computer,
-                 tuple(faults), wall_height, path)
+                 tuple(faults), wall_height, path, tuple(events))
 
 
 def _on_floor(data: MapData, pose: Pose2) -> bool:

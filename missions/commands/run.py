@@ -23,14 +23,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "every case, and the map and logs asked for are written. Output paths are checked before the run.",
     )
     parser.add_argument("mission", metavar="MISSION.yaml")
-    robot = parser.add_mutually_exclusive_group(required=True)
+    robot = parser.add_mutually_exclusive_group()
     robot.add_argument("--world", help="a bundled world's name, a world YAML or a map_server YAML")
     robot.add_argument("--robot", metavar="ROBOT.yaml", help="drive the real robot its robot file describes (wall clock)")
     robot.add_argument(
         "--adapter", metavar="MODULE:CALLABLE",
         help="build the robot with CALLABLE(seed=N) from MODULE instead (any RobotAdapter)",
     )  # fmt: skip
-    parser.add_argument("--seed", type=seed, default=0, help="the run's seed, 0 or more (same seed, same run)")
+    parser.add_argument("--seed", type=seed, default=None,
+                        help="the run's seed, 0 or more (same seed, same run; default 0, or the resumed run's)")
     parser.add_argument(
         "--speed", type=positive, metavar="X",
         help=f"pace at X× real time (default: as fast as possible, or {DEFAULT_VIEW_SPEED:g}× with the view)",
@@ -52,8 +53,41 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--serve", metavar="[HOST:]PORT",
         help="stream the tree to followers ('homing view --attach HOST:PORT'); binds 127.0.0.1 unless given a host",
     )  # fmt: skip
+    keep = parser.add_mutually_exclusive_group()
+    keep.add_argument("--run-dir", metavar="DIR",
+                      help="save a snapshot (map, tags, counters, the dock) into DIR whenever the mission asks "
+                           "(the persistent mission: at every dock)")
+    keep.add_argument("--resume", metavar="DIR",
+                      help="carry on a run from its latest snapshot in DIR (world and seed from it unless given), "
+                           "and keep saving there")
     add_set_argument(parser)
     parser.set_defaults(func=run)
+
+
+def _run_dir(args: argparse.Namespace) -> tuple[Any, Any]:
+    """(RunDir or None, the Snapshot to resume or None), checked before anything starts."""
+    from homing.lifecycle.rundir import RunDir
+
+    from homing.errors import UserError
+
+    if args.resume:
+        run_dir = RunDir(args.resume)
+        snap = run_dir.load()
+        run_dir.check_writable()
+        if not (args.world or args.robot or args.adapter):
+            args.world = snap.meta.get("world")
+            if not args.world:
+                raise UserError("the run directory does not say which world: give --world", args.resume)
+        if args.seed is None:
+            args.seed = int(snap.meta.get("seed", 0) or 0)
+        return run_dir, snap
+    if args.run_dir:
+        run_dir = RunDir(args.run_dir)
+        if run_dir.has_run():
+            raise UserError("already holds a run: continue it with --resume, or choose another directory", args.run_dir)
+        run_dir.check_writable()
+        return run_dir, None
+    return None, None
 
 
 def make_adapter(spec: str, seed: int) -> Any:
@@ -207,6 +241,10 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as err:
         raise UserError(f"--until: {err}") from None
     mission = compile_mission(args.mission, overrides(args))
+    run_dir, snap = _run_dir(args)
+    if not (args.world or args.robot or args.adapter):
+        raise UserError("say which robot to run on: --world, --robot or --adapter (or --resume a run)")
+    args.seed = 0 if args.seed is None else args.seed
     for warning in mission.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     check_timing(args.rate or mission.rate, until)
@@ -225,10 +263,16 @@ def run(args: argparse.Namespace) -> int:
     robot = recorder = None
     try:
         robot = _adapter(args)
+        if snap is not None and snap.sim is not None and hasattr(robot, "restore_state"):
+            try:
+                robot.restore_state(snap.sim)
+            except ValueError as err:
+                raise UserError(f"damaged snapshot: {err}", args.resume) from None
         recorder = _recorder(args, mission, robot)
         truth = getattr(robot, "truth_pose", None) if recorder is not None else None
         runner = Runner(mission, robot, seed=args.seed, rate=args.rate, until=until, speed=speed, on_change=on_change,
-                        recorder=recorder, truth=truth)
+                        recorder=recorder, truth=truth, run_dir=run_dir, resume=snap,
+                        meta={"mission": mission.name, "world": args.world, "seed": args.seed})
         if args.save_map:
             runner.bb.register_key(key="/map/grid", access=Access.READ)
         callbacks: list[Any] = [server.publish] if server is not None else []  # after each tick, in order
@@ -264,6 +308,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"stopped: {result.reason}{why} at t={result.time:.2f} s after {result.ticks} ticks "
           f"({result.rtf:.1f}× real time)")  # two lines within 80 columns
     print(f"final command v={cmd.v:.3f} m/s ω={cmd.omega:.3f} rad/s (robot stopped); root {result.root_status.value}")
+    if run_dir is not None:
+        print(f"run directory: {run_dir.path} ({runner.snapshots} snapshots saved this run"
+              f"{f', resumed at t={snap.time:.0f} s after {snap.cycles} cycles' if snap is not None else ''})")
     if result.reason == "interrupted":
         return exit_status(received())
     return {"success": 0, "time_limit": 0, "failure": 1}[result.reason]
