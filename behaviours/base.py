@@ -33,7 +33,8 @@ from py_trees.common import Access, Status
 TIME_SLACK = 1e-6  # [s] sums of float time steps fall short of round durations by this much at most
 
 TIMEOUT_PARAM = Param(
-    "timeout", float, 0.0, "s", "give up (FAILURE, reason 'timed_out') after this long on the adapter clock; 0 = never"
+    "timeout", float, 0.0, "s", "give up (FAILURE, reason 'timed_out') after this long on the adapter clock; 0 = never",
+    minimum=0.0,
 )
 
 

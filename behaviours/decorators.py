@@ -158,8 +158,9 @@ register("reactive_selector", kind="composite")(ReactiveFallback)
     "parallel",
     kind="composite",
     params=(
-        Param("success", (str, int), "all", doc="'all', 'one' or N: how many children must succeed"),
-        Param("failure", (str, int), "auto", doc="'auto' (once success is out of reach), 'all' or N failures that fail it"),
+        Param("success", (str, int), "all", doc="'all', 'one' or N: how many children must succeed", minimum=1),
+        Param("failure", (str, int), "auto", doc="'auto' (once success is out of reach), 'all' or N failures that fail it",
+              minimum=1),
     ),
 )
 class Parallel(Composite):
@@ -278,7 +279,7 @@ class RoundRobin(Composite):
     "recovery",
     kind="decorator",
     slots=("child", "recovery"),
-    params=(Param("retries", int, 1, doc="recovery rounds after the first attempt (Nav2 number_of_retries)"),),
+    params=(Param("retries", int, 1, doc="recovery rounds after the first attempt (Nav2 number_of_retries)", minimum=0),),
 )
 class RecoveryNode(Composite):
     """Run ``child``; on failure run ``recovery`` and try ``child`` again, up to ``retries`` times: Nav2's ``RecoveryNode``.
@@ -379,7 +380,8 @@ class Guard(Composite):
 @register(
     "retry",
     kind="decorator",
-    params=(Param("attempts", int, REQUIRED, doc="attempts of the child in all (≥ 1; -1 = until it succeeds)"),),
+    params=(Param("attempts", int, REQUIRED, doc="attempts of the child in all (≥ 1; -1 = until it succeeds)",
+                  minimum=-1),),
 )
 class Retry(py_trees.decorators.Retry):
     """Run the child up to ``attempts`` times until it succeeds; FAILURE on the last failure.
@@ -408,7 +410,7 @@ class Retry(py_trees.decorators.Retry):
 @register(
     "timeout",
     kind="decorator",
-    params=(Param("seconds", float, REQUIRED, "s", "fail the child after this long on the adapter clock"),),
+    params=(Param("seconds", float, REQUIRED, "s", "fail the child after this long on the adapter clock", above=0.0),),
 )
 class Timeout(_Clock, py_trees.decorators.Decorator):
     """FAILURE and halt the child if it is still running ``seconds`` after the decorator started.
@@ -448,7 +450,7 @@ class Timeout(_Clock, py_trees.decorators.Decorator):
 @register(
     "repeat",
     kind="decorator",
-    params=(Param("times", int, -1, doc="successes to reach; -1 = forever"),),
+    params=(Param("times", int, -1, doc="successes to reach; -1 = forever", minimum=-1),),
 )
 class Repeat(py_trees.decorators.Repeat):
     """Run the child again after each success until it has succeeded ``times`` times (-1 forever).
@@ -525,7 +527,7 @@ class OneShot(py_trees.decorators.OneShot):
 @register(
     "rate_limit",
     kind="decorator",
-    params=(Param("hz", float, REQUIRED, "Hz", "start the child at most this often (adapter clock)"),),
+    params=(Param("hz", float, REQUIRED, "Hz", "start the child at most this often (adapter clock)", above=0.0),),
 )
 class RateLimit(_Clock, py_trees.decorators.Decorator):
     """Start the child at most ``hz`` times a second; in between, return its last final status.

@@ -82,10 +82,10 @@ class Undock(_ReportsFailure):
     """
 
     PARAMS = (
-        Param("distance", float, 0.4, "m", "how far to back out"),
-        Param("speed", float, 0.1, "m/s", "backing speed"),
-        Param("turn", float, 2 * math.pi, "rad", "turn on the spot afterwards (0: none)"),
-        Param("omega", float, 0.8, "rad/s", "turning speed"),
+        Param("distance", float, 0.4, "m", "how far to back out", above=0.0),
+        Param("speed", float, 0.1, "m/s", "backing speed", above=0.0),
+        Param("turn", float, 2 * math.pi, "rad", "turn on the spot afterwards (0: none)", minimum=0.0),
+        Param("omega", float, 0.8, "rad/s", "turning speed", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -145,7 +145,7 @@ class GoHome(NavigateToPose):
     """
 
     PARAMS = (
-        Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose"),
+        Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose", above=0.0),
         *(p for p in NavigateToPose.PARAMS if p.name not in ("x", "y", "theta", "goal_key")),
     )
     READS = (*NavigateToPose.READS, DOCK_KEY)
@@ -174,11 +174,11 @@ class ServoToStaging(_ReportsFailure):
     """
 
     PARAMS = (
-        Param("tag", int, 0, "", "id of the tag above the dock"),
-        Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose"),
-        Param("xy_tolerance", float, 0.02, "m", "reached within this distance"),
-        Param("yaw_tolerance", float, math.radians(1.5), "rad", "and this heading error"),
-        Param("search_angle", float, math.radians(70.0), "rad", "sweep this far each way to find the tag"),
+        Param("tag", int, 0, "", "id of the tag above the dock", minimum=0),
+        Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose", above=0.0),
+        Param("xy_tolerance", float, 0.02, "m", "reached within this distance", above=0.0),
+        Param("yaw_tolerance", float, math.radians(1.5), "rad", "and this heading error", above=0.0),
+        Param("search_angle", float, math.radians(70.0), "rad", "sweep this far each way to find the tag", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -231,7 +231,7 @@ class AutoDock(_ReportsFailure):
     """
 
     PARAMS = (
-        Param("max_bumps", int, 3, "", "bumper presses before the attempt fails"),
+        Param("max_bumps", int, 3, "", "bumper presses before the attempt fails", minimum=1),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -278,7 +278,7 @@ class Charge(_ReportsFailure):
     """
 
     PARAMS = (
-        Param("poll", float, CHARGE_POLL, "s", "adapter time between looks at the batteries"),
+        Param("poll", float, CHARGE_POLL, "s", "adapter time between looks at the batteries", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )

@@ -32,7 +32,7 @@ class Wait(LongAction):
     so the robot stands still while it waits.
     """
 
-    PARAMS = (Param("seconds", float, REQUIRED, "s", "how long to wait"),)
+    PARAMS = (Param("seconds", float, REQUIRED, "s", "how long to wait", minimum=0.0),)
 
     def __init__(self, name: str, seconds: float):
         if seconds < 0:
@@ -57,7 +57,7 @@ class Drive(LongAction):
     PARAMS = (
         Param("v", float, 0.0, "m/s", "forward speed in base_link"),
         Param("omega", float, 0.0, "rad/s", "yaw rate, counter-clockwise positive"),
-        Param("seconds", float, REQUIRED, "s", "how long to drive"),
+        Param("seconds", float, REQUIRED, "s", "how long to drive", above=0.0),
     )
     WRITES = (CMD_VEL_KEY,)
 
@@ -209,7 +209,7 @@ class CheckBlackboard(HomingBehaviour):
 
 class _BatteryCondition(HomingBehaviour):
     PARAMS = (
-        Param("percent", float, REQUIRED, "%", "threshold, 0..100"),
+        Param("percent", float, REQUIRED, "%", "threshold, 0..100", minimum=0.0, maximum=100.0),
         Param("battery", str, "base", doc="which battery: the Kobuki base or the on-board computer", choices=("base", "computer")),
     )
     READS = (OBSERVATION_KEY,)

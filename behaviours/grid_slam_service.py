@@ -41,9 +41,10 @@ PUBLISH_PERIOD = 1.0  # [s] between /map/grid snapshots
 @register_service(
     "grid_slam",
     params=(
-        Param("resolution", float, 0.05, "m", "cell size of the occupancy grid"),
+        Param("resolution", float, 0.05, "m", "cell size of the occupancy grid", minimum=0.01, maximum=1.0),
         Param("use_matcher", bool, True, "", "correct odometry by scan-to-map matching (false: odometry-only baseline)"),
-        Param("publish_period", float, PUBLISH_PERIOD, "s", "adapter time between grid snapshots on /map/grid (0: live)"),
+        Param("publish_period", float, PUBLISH_PERIOD, "s", "adapter time between grid snapshots on /map/grid (0: live)",
+              minimum=0.0),
     ),
     writes=(GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY),
 )

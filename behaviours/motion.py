@@ -109,8 +109,8 @@ class NavigateToPose(_Navigating):
         Param("y", float, math.nan, "m", "goal y in map"),
         Param("theta", float, math.nan, "rad", "goal heading in map (nan: any)"),
         Param("goal_key", str, "/nav/goal", doc="blackboard key holding a Pose2 goal when x/y are not given"),
-        Param("xy_tolerance", float, 0.15, "m", "reached within this distance"),
-        Param("yaw_tolerance", float, 0.25, "rad", "and this heading error"),
+        Param("xy_tolerance", float, 0.15, "m", "reached within this distance", above=0.0),
+        Param("yaw_tolerance", float, 0.25, "rad", "and this heading error", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -186,7 +186,7 @@ class Spin(_MotionLeaf):
 
     PARAMS = (
         Param("angle", float, 2 * math.pi, "rad", "relative turn, counter-clockwise positive"),
-        Param("omega", float, 1.0, "rad/s", "turning speed"),
+        Param("omega", float, 1.0, "rad/s", "turning speed", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -206,8 +206,8 @@ class BackUp(_MotionLeaf):
     """Drive straight backwards ``distance`` at ``speed``; fails rather than touch what the scan sees behind."""
 
     PARAMS = (
-        Param("distance", float, 0.15, "m", "how far to back up"),
-        Param("speed", float, 0.05, "m/s", "backing speed"),
+        Param("distance", float, 0.15, "m", "how far to back up", above=0.0),
+        Param("speed", float, 0.05, "m/s", "backing speed", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )

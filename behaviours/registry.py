@@ -38,6 +38,10 @@ class Param:
 
     ``type`` is ``float``, ``int``, ``bool``, ``str``, ``list`` or a tuple of
     them; ``choices`` restricts a string to a set (e.g. plugin names).
+    A number must lie in ``[minimum, maximum]`` (in ``unit``) and above
+    ``above`` when they are given — a negative distance or a zero speed is
+    a mistake, not something to run — and must be finite (NaN is accepted
+    only where the default is NaN, which then means "not given").
     """
 
     name: str
@@ -46,6 +50,9 @@ class Param:
     unit: str = ""
     doc: str = ""
     choices: tuple[str, ...] = ()
+    minimum: float | None = None
+    maximum: float | None = None
+    above: float | None = None  # exclusive minimum
 
     @property
     def required(self) -> bool:

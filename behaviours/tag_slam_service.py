@@ -51,13 +51,13 @@ TOUR_GOAL_KEY = "/tag_tour/goal"
 @register_service(
     "tag_slam",
     params=(
-        Param("tag_size", float, 0.16, "m", "black square's edge of the tags"),
-        Param("dock_tag", int, 0, "", "id of the dock's tag, the map's anchor (-1: none)"),
-        Param("keyframe_distance", float, 0.25, "m", "odometry travelled before a new keyframe"),
-        Param("keyframe_angle", float, 0.35, "rad", "odometry turn before a new keyframe"),
+        Param("tag_size", float, 0.16, "m", "black square's edge of the tags", above=0.0),
+        Param("dock_tag", int, 0, "", "id of the dock's tag, the map's anchor (-1: none)", minimum=-1),
+        Param("keyframe_distance", float, 0.25, "m", "odometry travelled before a new keyframe", above=0.0),
+        Param("keyframe_angle", float, 0.35, "rad", "odometry turn before a new keyframe", above=0.0),
         Param("robust", str, "cauchy", "", "M-estimator on tag factors", choices=("cauchy", "huber", "none")),
-        Param("max_range", float, 3.0, "m", "tags farther than this are ignored"),
-        Param("resolution", float, 0.05, "m", "cell size of the rebuilt occupancy grid"),
+        Param("max_range", float, 3.0, "m", "tags farther than this are ignored", above=0.0),
+        Param("resolution", float, 0.05, "m", "cell size of the rebuilt occupancy grid", minimum=0.01, maximum=1.0),
         Param("grid", bool, True, "", "own the grid and the pose (false: map the tags in grid_slam's frame, per trip)"),
         Param("image_rate", float, 0.0, "Hz", "look for tags in at most this many frames a second (0: every frame); "
               "every frame while a leaf asks to (/perception/focus_until)"),
@@ -231,10 +231,11 @@ class NextTagView(HomingBehaviour):
     """
 
     PARAMS = (
-        Param("distance", float, 1.0, "m", "how far in front of the tag the view pose is"),
+        Param("distance", float, 1.0, "m", "how far in front of the tag the view pose is", above=0.0),
         Param("goal_key", str, TOUR_GOAL_KEY, doc="blackboard key the Pose2 goal is written to"),
-        Param("anchor_tag", int, -1, "", "the map's anchor tag (the dock's) revisited every anchor_every picks"),
-        Param("anchor_every", int, 0, "", "every n-th pick is the anchor tag (0: never singled out)"),
+        Param("anchor_tag", int, -1, "", "the map's anchor tag (the dock's) revisited every anchor_every picks",
+              minimum=-1),
+        Param("anchor_every", int, 0, "", "every n-th pick is the anchor tag (0: never singled out)", minimum=0),
     )
     READS = (LANDMARKS_KEY, POSE_KEY)
     WRITES = ("$goal_key",)
@@ -280,8 +281,8 @@ class NextWallView(HomingBehaviour):
     """
 
     PARAMS = (
-        Param("distance", float, 1.2, "m", "how far from the wall the view pose is"),
-        Param("spacing", float, 2.0, "m", "between view poses along a wall"),
+        Param("distance", float, 1.2, "m", "how far from the wall the view pose is", above=0.0),
+        Param("spacing", float, 2.0, "m", "between view poses along a wall", above=0.0),
         Param("goal_key", str, TOUR_GOAL_KEY, doc="blackboard key the Pose2 goal is written to"),
     )
     READS = (GRID_KEY, POSE_KEY)

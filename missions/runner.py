@@ -244,6 +244,8 @@ class Runner:
         """Zero command, halt the tree (running leaves cancel), record the halts, shut services down."""
         self.last_command = self.robot.command(0.0, 0.0)
         self.now = float(self.robot.clock.now())
+        if self.recorder is not None:
+            self.recorder.record_command(self.now, self.last_command)  # the log shows the robot stopped
         if self.mission.root.status == Status.RUNNING:
             self.mission.root.stop(Status.INVALID)
         self._sweep()
