@@ -30,8 +30,11 @@ from homing.behaviours.registry import Param
 from homing.robot import Observation, RobotAdapter, Twist2
 from py_trees.common import Access, Status
 
+TIME_SLACK = 1e-6  # [s] sums of float time steps fall short of round durations by this much at most
+
 TIMEOUT_PARAM = Param(
-    "timeout", float, 0.0, "s", "give up (FAILURE, reason 'timed_out') after this long on the adapter clock; 0 = never"
+    "timeout", float, 0.0, "s", "give up (FAILURE, reason 'timed_out') after this long on the adapter clock; 0 = never",
+    minimum=0.0,
 )
 
 
@@ -173,6 +176,10 @@ class LongAction(HomingBehaviour):
     def elapsed(self) -> float:
         """Seconds of adapter time since the action started."""
         return self.now() - self.start_time
+
+    def has_run_for(self, seconds: float) -> bool:
+        """Whether ``seconds`` of adapter time have passed since the start (ten steps of 0.1 s make 1 s, not 0.99…)."""
+        return self.elapsed() >= seconds - TIME_SLACK
 
     def remaining(self) -> float:
         """Seconds left before the deadline (inf without one)."""

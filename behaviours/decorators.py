@@ -49,8 +49,54 @@ class _Clock:
 # --------------------------------------------------------------------------- composites
 
 
+class _PassesOverSkipped(py_trees.composites.Sequence):
+    """py_trees' ``Sequence`` that passes over a child left INVALID by its tick (BT.CPP's SKIPPED).
+
+    A node that decides not to run this tick (``run_once`` after its run)
+    reports INVALID, "not ticked"; as in BT.CPP, a sequence goes on to the
+    next child instead of stopping there, and a sequence whose children were
+    all skipped is skipped itself. Everything else is py_trees' own tick.
+    """
+
+    def tick(self) -> Iterator[Behaviour]:
+        first = 0
+        if self.status != Status.RUNNING:
+            self.current_child = self.children[0] if self.children else None
+            for child in self.children:
+                if child.status != Status.INVALID:
+                    child.stop(Status.INVALID)
+            self.initialise()
+        elif self.memory and self.current_child is not None:
+            first = self.children.index(self.current_child)
+        else:
+            self.current_child = self.children[0] if self.children else None
+        skipped = 0
+        for index, child in enumerate(self.children[first:], start=first):
+            self.current_child = child
+            for node in child.tick():
+                yield node
+                if node is child and node.status in (Status.RUNNING, Status.FAILURE):
+                    if not self.memory:
+                        for later in self.children[index + 1:]:
+                            if later.status != Status.INVALID:
+                                later.stop(Status.INVALID)
+                    if node.status == Status.FAILURE:
+                        self.stop(Status.FAILURE)
+                    else:
+                        self.status = Status.RUNNING
+                    yield self
+                    return
+            skipped += child.status == Status.INVALID
+        if self.children and skipped == len(self.children):
+            self.stop(Status.INVALID)
+            self.feedback_message = "every child skipped"
+        else:
+            self.stop(Status.SUCCESS)
+        yield self
+
+
 @register("sequence", kind="composite", params=(Param("memory", bool, True, doc="resume at the running child"),))
-class Sequence(py_trees.composites.Sequence):
+class Sequence(_PassesOverSkipped):
     """Tick children in order until one fails or runs; SUCCESS when all succeed.
 
     ``memory: true`` (the default) is py_trees ``Sequence(memory=True)`` and
@@ -65,7 +111,7 @@ class Sequence(py_trees.composites.Sequence):
 
 
 @register("reactive_sequence", kind="composite")
-class ReactiveSequence(py_trees.composites.Sequence):
+class ReactiveSequence(_PassesOverSkipped):
     """Re-tick every child from the first on every tick; a failing earlier child halts a running later one.
 
     py_trees ``Sequence(memory=False)``, BT.CPP ``ReactiveSequence``. Use it
@@ -112,7 +158,9 @@ register("reactive_selector", kind="composite")(ReactiveFallback)
     "parallel",
     kind="composite",
     params=(
-        Param("success", (str, int), "all", doc="'all', 'one' or N: how many children must succeed"),
+        Param("success", (str, int), "all", doc="'all', 'one' or N: how many children must succeed", minimum=1),
+        Param("failure", (str, int), "auto", doc="'auto' (once success is out of reach), 'all' or N failures that fail it",
+              minimum=1),
     ),
 )
 class Parallel(Composite):
@@ -121,23 +169,29 @@ class Parallel(Composite):
     ``success: all`` (default) = py_trees ``SuccessOnAll`` (synchronised) and
     BT.CPP ``ParallelNode`` with ``success_count = M``: any failure fails it.
     ``success: one`` = one success is enough, and it fails only when every
-    child has failed (py_trees' ``SuccessOnOne`` fails on the first failure;
-    BT.CPP's ``failure_count = M`` does what homing does). A child that has
-    finished is not ticked again until the parallel restarts; still-running
-    children are halted when the parallel finishes.
+    child has failed (py_trees' ``SuccessOnOne`` fails on the first failure:
+    add ``failure: 1``; BT.CPP's ``failure_count = M`` does what homing does).
+    ``failure: N`` also fails it after N failures, as BT.CPP's
+    ``failure_count`` (it fails too once success is out of reach). A child
+    that has finished is not ticked again until the parallel restarts;
+    still-running children are halted when the parallel finishes. A child
+    that skips itself (``run_once`` after its run) counts as neither.
     """
 
-    def __init__(self, name: str, children: Seq[Behaviour], success: str | int = "all"):
+    def __init__(self, name: str, children: Seq[Behaviour], success: str | int = "all", failure: str | int = "auto"):
         super().__init__(name=name, children=list(children))
         n = len(self.children)
-        if success == "all":
-            self.needed = n
-        elif success == "one":
-            self.needed = min(1, n)
-        elif isinstance(success, int) and not isinstance(success, bool) and 1 <= success <= max(n, 1):
-            self.needed = success
-        else:
-            raise ValueError(f"success must be 'all', 'one' or an integer 1..{n} (the number of children), not {success!r}")
+        self.needed = self._count("success", success, n, {"all": n, "one": min(1, n)})
+        self.failures_allowed = self._count("failure", failure, n, {"all": n, "auto": n + 1})
+
+    @staticmethod
+    def _count(what: str, value: str | int, n: int, words: dict[str, int]) -> int:
+        if isinstance(value, str) and value in words:
+            return words[value]
+        if isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= max(n, 1):
+            return value
+        spelt = ", ".join(f"'{w}'" for w in words)
+        raise ValueError(f"{what} must be {spelt} or an integer 1..{n} (the number of children), not {value!r}")
 
     def tick(self) -> Iterator[Behaviour]:
         if self.status != Status.RUNNING:
@@ -152,10 +206,11 @@ class Parallel(Composite):
             yield from child.tick()
         successes = sum(c.status == Status.SUCCESS for c in self.children)
         failures = sum(c.status == Status.FAILURE for c in self.children)
+        skipped = sum(c.status == Status.INVALID for c in self.children)
         self.feedback_message = f"{successes}/{self.needed} succeeded, {failures} failed"
-        if successes >= self.needed:
+        if successes >= min(self.needed, len(self.children) - skipped) and successes:
             self.stop(Status.SUCCESS)
-        elif len(self.children) - failures < self.needed:
+        elif len(self.children) - failures - skipped < self.needed or failures >= self.failures_allowed:
             self.stop(Status.FAILURE)
         else:
             self.status = Status.RUNNING
@@ -175,9 +230,10 @@ class RoundRobin(Composite):
     A tick runs the current child; FAILURE moves on to the next child in the
     same tick (wrapping round), SUCCESS returns SUCCESS, RUNNING returns
     RUNNING. FAILURE only when every child has failed in a row. The turn is
-    kept across activations, so under a ``recovery`` node each recovery
-    attempt uses the next action (clear costmap, then spin, then back up, …).
-    As in Nav2, a halt (preemption while running) resets the turn to the first child.
+    kept across activations that succeed, so under a ``recovery`` node each
+    recovery attempt uses the next action (clear costmap, then spin, then
+    back up, …). As in Nav2, a halt (preemption while running) and a whole
+    round of failures both reset the turn to the first child.
     """
 
     def __init__(self, name: str, children: Seq[Behaviour]):
@@ -206,6 +262,8 @@ class RoundRobin(Composite):
                 yield self
                 return
             self.failed += 1
+        # A whole round failed: Nav2 halts the node, so the next activation starts at the first child.
+        self.index = 0
         self.failed = 0
         self.stop(Status.FAILURE)
         yield self
@@ -221,7 +279,7 @@ class RoundRobin(Composite):
     "recovery",
     kind="decorator",
     slots=("child", "recovery"),
-    params=(Param("retries", int, 1, doc="recovery rounds after the first attempt (Nav2 number_of_retries)"),),
+    params=(Param("retries", int, 1, doc="recovery rounds after the first attempt (Nav2 number_of_retries)", minimum=0),),
 )
 class RecoveryNode(Composite):
     """Run ``child``; on failure run ``recovery`` and try ``child`` again, up to ``retries`` times: Nav2's ``RecoveryNode``.
@@ -283,6 +341,9 @@ class Guard(Composite):
     RUNNING, which counts as "not yet true") → a running child is halted
     and the guard returns FAILURE. py_trees' ``EternalGuard`` with a
     condition node instead of a function; BT.CPP's ``_while`` precondition.
+    Whenever the guard finishes, whatever is still RUNNING below it (a
+    condition subtree that had not decided) is halted, so the next
+    activation starts the condition afresh (BT.CPP ``resetChildren``).
     """
 
     def __init__(self, name: str, condition: Behaviour, child: Behaviour):
@@ -302,11 +363,15 @@ class Guard(Composite):
             else:
                 self.stop(child.status)
         else:
-            if child.status == Status.RUNNING:
-                child.stop(Status.INVALID)
             self.feedback_message = f"guard '{condition.name}' is false"
             self.stop(Status.FAILURE)
         yield self
+
+    def stop(self, new_status: Status = Status.INVALID) -> None:
+        for node in self.children:
+            if node.status == Status.RUNNING:
+                node.stop(Status.INVALID)
+        super().stop(new_status)
 
 
 # --------------------------------------------------------------------------- decorators
@@ -315,28 +380,37 @@ class Guard(Composite):
 @register(
     "retry",
     kind="decorator",
-    params=(Param("attempts", int, REQUIRED, doc="attempts of the child in all (≥ 1)"),),
+    params=(Param("attempts", int, REQUIRED, doc="attempts of the child in all (≥ 1; -1 = until it succeeds)",
+                  minimum=-1),),
 )
 class Retry(py_trees.decorators.Retry):
     """Run the child up to ``attempts`` times until it succeeds; FAILURE on the last failure.
 
     ``attempts: 3`` = three attempts in all = py_trees ``Retry(num_failures=3)``
     = BT.CPP ``RetryUntilSuccessful(num_attempts=3)`` = Nav2
-    ``RecoveryNode(number_of_retries=2)`` without a recovery branch. A failed
+    ``RecoveryNode(number_of_retries=2)`` without a recovery branch;
+    ``attempts: -1`` retries until it succeeds (BT.CPP's -1). A failed
     attempt returns RUNNING for that tick and the child starts afresh on the
-    next one. Resets when the decorator restarts.
+    next one (BT.CPP retries within the same tick). Resets when the
+    decorator restarts.
     """
 
+    PORT_PARAMS = ("attempts",)
+
     def __init__(self, name: str, child: Behaviour, attempts: int):
-        if attempts < 1:
-            raise ValueError(f"attempts must be ≥ 1, not {attempts}")
-        super().__init__(name=name, child=child, num_failures=attempts)
+        super().__init__(name=name, child=child, num_failures=1)
+        self.set_port("attempts", attempts)
+
+    def set_port(self, name: str, value: int) -> None:
+        if value < 1 and value != -1:
+            raise ValueError(f"attempts must be ≥ 1 or -1 (until it succeeds), not {value}")
+        self.num_failures = math.inf if value == -1 else value  # type: ignore[assignment]
 
 
 @register(
     "timeout",
     kind="decorator",
-    params=(Param("seconds", float, REQUIRED, "s", "fail the child after this long on the adapter clock"),),
+    params=(Param("seconds", float, REQUIRED, "s", "fail the child after this long on the adapter clock", above=0.0),),
 )
 class Timeout(_Clock, py_trees.decorators.Decorator):
     """FAILURE and halt the child if it is still running ``seconds`` after the decorator started.
@@ -376,7 +450,7 @@ class Timeout(_Clock, py_trees.decorators.Decorator):
 @register(
     "repeat",
     kind="decorator",
-    params=(Param("times", int, -1, doc="successes to reach; -1 = forever"),),
+    params=(Param("times", int, -1, doc="successes to reach; -1 = forever", minimum=-1),),
 )
 class Repeat(py_trees.decorators.Repeat):
     """Run the child again after each success until it has succeeded ``times`` times (-1 forever).
@@ -386,10 +460,16 @@ class Repeat(py_trees.decorators.Repeat):
     on the next tick.
     """
 
+    PORT_PARAMS = ("times",)
+
     def __init__(self, name: str, child: Behaviour, times: int = -1):
-        if times == 0 or times < -1:
-            raise ValueError(f"times must be ≥ 1 or -1 (forever), not {times}")
-        super().__init__(name=name, child=child, num_success=times)
+        super().__init__(name=name, child=child, num_success=-1)
+        self.set_port("times", times)
+
+    def set_port(self, name: str, value: int) -> None:
+        if value == 0 or value < -1:
+            raise ValueError(f"times must be ≥ 1 or -1 (forever), not {value}")
+        self.num_success = value
 
 
 @register("inverter", kind="decorator")
@@ -447,7 +527,7 @@ class OneShot(py_trees.decorators.OneShot):
 @register(
     "rate_limit",
     kind="decorator",
-    params=(Param("hz", float, REQUIRED, "Hz", "start the child at most this often (adapter clock)"),),
+    params=(Param("hz", float, REQUIRED, "Hz", "start the child at most this often (adapter clock)", above=0.0),),
 )
 class RateLimit(_Clock, py_trees.decorators.Decorator):
     """Start the child at most ``hz`` times a second; in between, return its last final status.
@@ -478,6 +558,13 @@ class RateLimit(_Clock, py_trees.decorators.Decorator):
                 return
             self.last_start = now
         yield from super().tick()
+
+    PORT_PARAMS = ("hz",)
+
+    def set_port(self, name: str, value: float) -> None:
+        if not value > 0:
+            raise ValueError(f"hz must be > 0, not {value}")
+        self.period = 1.0 / float(value)
 
     def update(self) -> Status:
         status = self.decorated.status

@@ -26,9 +26,11 @@ from homing.behaviours.keys import (
     CMD_VEL_KEY,
     DOCK_KEY,
     ENERGY_KEY,
+    FOCUS_KEY,
     IDLE_KEY,
     NAVIGATOR_KEY,
     OBSERVATION_KEY,
+    SAVE_KEY,
     TAGS_KEY,
 )
 from homing.behaviours.motion import FAILURE_KEY, FAILURE_PARAM, NavigateToPose, _ReportsFailure
@@ -42,6 +44,7 @@ from homing.robot import ChargingSource, Observation
 from py_trees.common import Status
 
 CHARGE_POLL = 10.0  # [s] adapter time between looks at the batteries while charging
+FOCUS_AHEAD = 0.5  # [s] the servo asks for every camera frame this far ahead, renewed every tick
 
 
 def on_dock(obs: Observation | None) -> bool:
@@ -79,10 +82,10 @@ class Undock(_ReportsFailure):
     """
 
     PARAMS = (
-        Param("distance", float, 0.4, "m", "how far to back out"),
-        Param("speed", float, 0.1, "m/s", "backing speed"),
-        Param("turn", float, 2 * math.pi, "rad", "turn on the spot afterwards (0: none)"),
-        Param("omega", float, 0.8, "rad/s", "turning speed"),
+        Param("distance", float, 0.4, "m", "how far to back out", above=0.0),
+        Param("speed", float, 0.1, "m/s", "backing speed", above=0.0),
+        Param("turn", float, 2 * math.pi, "rad", "turn on the spot afterwards (0: none)", minimum=0.0),
+        Param("omega", float, 0.8, "rad/s", "turning speed", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -142,7 +145,7 @@ class GoHome(NavigateToPose):
     """
 
     PARAMS = (
-        Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose"),
+        Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose", above=0.0),
         *(p for p in NavigateToPose.PARAMS if p.name not in ("x", "y", "theta", "goal_key")),
     )
     READS = (*NavigateToPose.READS, DOCK_KEY)
@@ -171,16 +174,16 @@ class ServoToStaging(_ReportsFailure):
     """
 
     PARAMS = (
-        Param("tag", int, 0, "", "id of the tag above the dock"),
-        Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose"),
-        Param("xy_tolerance", float, 0.02, "m", "reached within this distance"),
-        Param("yaw_tolerance", float, math.radians(1.5), "rad", "and this heading error"),
-        Param("search_angle", float, math.radians(70.0), "rad", "sweep this far each way to find the tag"),
+        Param("tag", int, 0, "", "id of the tag above the dock", minimum=0),
+        Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose", above=0.0),
+        Param("xy_tolerance", float, 0.02, "m", "reached within this distance", above=0.0),
+        Param("yaw_tolerance", float, math.radians(1.5), "rad", "and this heading error", above=0.0),
+        Param("search_angle", float, math.radians(70.0), "rad", "sweep this far each way to find the tag", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
     READS = (OBSERVATION_KEY, TAGS_KEY)
-    WRITES = (CMD_VEL_KEY, "$failure_key")
+    WRITES = (CMD_VEL_KEY, FOCUS_KEY, "$failure_key")
 
     def __init__(self, name: str, tag: int = 0, staging_distance: float = STAGING_DISTANCE,
                  xy_tolerance: float = 0.02, yaw_tolerance: float = math.radians(1.5),
@@ -204,6 +207,7 @@ class ServoToStaging(_ReportsFailure):
         obs = self.observation()
         if obs is None:
             return self.fail("no_observation")
+        self.write(FOCUS_KEY, obs.stamp + FOCUS_AHEAD)  # every frame counts while servoing
         for m in self.read(TAGS_KEY) or ():
             if m.tag_id == self.tag:
                 self.servo.see(Sighting(m.stamp, m.pose, m.covariance))
@@ -227,7 +231,7 @@ class AutoDock(_ReportsFailure):
     """
 
     PARAMS = (
-        Param("max_bumps", int, 3, "", "bumper presses before the attempt fails"),
+        Param("max_bumps", int, 3, "", "bumper presses before the attempt fails", minimum=1),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -274,7 +278,7 @@ class Charge(_ReportsFailure):
     """
 
     PARAMS = (
-        Param("poll", float, CHARGE_POLL, "s", "adapter time between looks at the batteries"),
+        Param("poll", float, CHARGE_POLL, "s", "adapter time between looks at the batteries", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -300,3 +304,21 @@ class Charge(_ReportsFailure):
         self.feedback_message = "charging: " + ", ".join(waiting) if waiting else "waiting for the energy policy"
         self.write(IDLE_KEY, obs.stamp + self.poll)
         return Status.RUNNING
+
+
+@register("SaveRun")
+class SaveRun(HomingBehaviour):
+    """Ask the runner to save a snapshot to the run directory after this tick (``/runner/save``) and SUCCEED.
+
+    What is kept (the map, the tags' estimates, the counters, the dock) and
+    where is the runner's business (``homing run --run-dir``,
+    :mod:`homing.lifecycle.rundir`); without a run directory it does nothing.
+    The persistent mission saves at every dock.
+    """
+
+    WRITES = (SAVE_KEY,)
+
+    def update(self) -> Status:
+        self.write(SAVE_KEY, True)
+        self.feedback_message = "snapshot requested"
+        return Status.SUCCESS

@@ -70,14 +70,14 @@ def battery_reading(obs: Observation, battery: str) -> Any:
 @register_service(
     "energy",
     params=(
-        Param("computer_undock", float, 90.0, "%", "leave the dock once the computer's battery is this full (thesis)"),
-        Param("computer_home", float, 20.0, "%", "head home at this level of the computer's battery plus the reserve (thesis)"),
-        Param("base_undock", float, 90.0, "%", "leave the dock once the base's battery is this full"),
-        Param("base_home", float, 30.0, "%", "head home at this level of the base's battery plus the reserve"),
-        Param("return_speed", float, RETURN_SPEED, "m/s", "planned speed of the way home"),
-        Param("docking_allowance", float, DOCKING_ALLOWANCE, "s", "time the servo and IR docking may take, with a retry"),
-        Param("margin", float, MARGIN, "", "safety factor on the reserve"),
-        Param("period", float, PERIOD, "s", "adapter time between updates of the distance home"),
+        Param("computer_undock", float, 90.0, "%", "leave the dock once the computer's battery is this full (thesis)", minimum=0.0, maximum=100.0),
+        Param("computer_home", float, 20.0, "%", "head home at this level of the computer's battery plus the reserve (thesis)", minimum=0.0, maximum=100.0),
+        Param("base_undock", float, 90.0, "%", "leave the dock once the base's battery is this full", minimum=0.0, maximum=100.0),
+        Param("base_home", float, 30.0, "%", "head home at this level of the base's battery plus the reserve", minimum=0.0, maximum=100.0),
+        Param("return_speed", float, RETURN_SPEED, "m/s", "planned speed of the way home", above=0.0),
+        Param("docking_allowance", float, DOCKING_ALLOWANCE, "s", "time the servo and IR docking may take, with a retry", minimum=0.0),
+        Param("margin", float, MARGIN, "", "safety factor on the reserve", minimum=1.0),
+        Param("period", float, PERIOD, "s", "adapter time between updates of the distance home", above=0.0),
     ),
     writes=(ENERGY_KEY, HOME_DISTANCE_KEY),
 )

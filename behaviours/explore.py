@@ -80,9 +80,10 @@ class Explore(LongAction):
 
     PARAMS = (
         Param("strategy", str, DEFAULT_STRATEGY, "", "frontier goal strategy", choices=tuple(sorted(STRATEGIES))),
-        Param("decide_period", float, DECIDE_PERIOD, "s", "time between decisions while driving"),
-        Param("reach_radius", float, REACH_RADIUS, "m", "a goal this close counts as reached"),
-        Param("progress_timeout", float, 30.0, "s", "blacklist a goal the robot gets no closer to for this long"),
+        Param("decide_period", float, DECIDE_PERIOD, "s", "time between decisions while driving", above=0.0),
+        Param("reach_radius", float, REACH_RADIUS, "m", "a goal this close counts as reached", above=0.0),
+        Param("progress_timeout", float, 30.0, "s", "blacklist a goal the robot gets no closer to for this long",
+              above=0.0),
         TIMEOUT_PARAM,
     )
     READS = (OBSERVATION_KEY, NAVIGATOR_KEY, GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY)
@@ -212,7 +213,7 @@ class NoFrontierLeft(HomingBehaviour):
     every tick.
     """
 
-    PARAMS = (Param("period", float, NO_FRONTIER_PERIOD, "s", "recompute at most this often"),)
+    PARAMS = (Param("period", float, NO_FRONTIER_PERIOD, "s", "recompute at most this often", minimum=0.0),)
     READS = (NAVIGATOR_KEY, GRID_KEY, POSE_KEY)
 
     def __init__(self, name: str, period: float = NO_FRONTIER_PERIOD, **kwargs: Any) -> None:

@@ -32,7 +32,7 @@ class Wait(LongAction):
     so the robot stands still while it waits.
     """
 
-    PARAMS = (Param("seconds", float, REQUIRED, "s", "how long to wait"),)
+    PARAMS = (Param("seconds", float, REQUIRED, "s", "how long to wait", minimum=0.0),)
 
     def __init__(self, name: str, seconds: float):
         if seconds < 0:
@@ -43,7 +43,7 @@ class Wait(LongAction):
     def on_running(self) -> Status:
         left = self.seconds - self.elapsed()
         self.feedback_message = f"{max(left, 0.0):.1f} s left"
-        return Status.SUCCESS if left <= 0 else Status.RUNNING
+        return Status.SUCCESS if self.has_run_for(self.seconds) else Status.RUNNING
 
 
 @register("Drive")
@@ -57,7 +57,7 @@ class Drive(LongAction):
     PARAMS = (
         Param("v", float, 0.0, "m/s", "forward speed in base_link"),
         Param("omega", float, 0.0, "rad/s", "yaw rate, counter-clockwise positive"),
-        Param("seconds", float, REQUIRED, "s", "how long to drive"),
+        Param("seconds", float, REQUIRED, "s", "how long to drive", above=0.0),
     )
     WRITES = (CMD_VEL_KEY,)
 
@@ -68,7 +68,7 @@ class Drive(LongAction):
         self.v, self.omega, self.seconds = float(v), float(omega), float(seconds)
 
     def on_running(self) -> Status:
-        if self.elapsed() >= self.seconds:
+        if self.has_run_for(self.seconds):
             return Status.SUCCESS
         self.drive(self.v, self.omega)
         self.feedback_message = f"v={self.v:.2f} m/s ω={self.omega:.2f} rad/s, {self.seconds - self.elapsed():.1f} s left"
@@ -209,7 +209,7 @@ class CheckBlackboard(HomingBehaviour):
 
 class _BatteryCondition(HomingBehaviour):
     PARAMS = (
-        Param("percent", float, REQUIRED, "%", "threshold, 0..100"),
+        Param("percent", float, REQUIRED, "%", "threshold, 0..100", minimum=0.0, maximum=100.0),
         Param("battery", str, "base", doc="which battery: the Kobuki base or the on-board computer", choices=("base", "computer")),
     )
     READS = (OBSERVATION_KEY,)
@@ -246,6 +246,19 @@ class BatteryBelow(_BatteryCondition):
     """SUCCESS while the battery's percentage is strictly below ``percent`` (Nav2 ``IsBatteryLow``)."""
 
     ABOVE = False
+
+
+@register("BatteryCharging", kind="condition")
+class BatteryCharging(HomingBehaviour):
+    """SUCCESS while the base battery is charging, on the dock or an adapter (Nav2 ``IsBatteryCharging``; reads /robot/observation)."""
+
+    READS = (OBSERVATION_KEY,)
+
+    def update(self) -> Status:
+        obs = self.observation()
+        charging = obs is not None and obs.battery.charging
+        self.feedback_message = "charging" if charging else "not charging"
+        return Status.SUCCESS if charging else Status.FAILURE
 
 
 @register("MissionState")

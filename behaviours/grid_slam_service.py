@@ -14,7 +14,9 @@ so most ticks cost a dictionary lookup), and the service writes:
   obstacle layer still sees every scan. ``publish_period: 0`` publishes the
   live grid (changing with every scan);
 - ``/map/pose``: base_link in ``map`` (``map_to_odom ⊕ odom``, fresh every tick);
-- ``/map/map_to_odom``: the scan matcher's correction.
+- ``/map/map_to_odom``: the scan matcher's correction;
+- ``/map/localized``: False while tracking has lost the robot (a kidnap) and
+  the scans are looked for in the whole map (:mod:`homing.mapping.relocalize`).
 
 ``map`` is the ``odom`` frame at the first scan. When ``tag_slam`` runs after
 this service in the same mission, its keys override these (it owns the grid).
@@ -27,7 +29,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from homing.behaviours.keys import GRID_KEY, MAP_TO_ODOM_KEY, POSE_KEY
+from homing.behaviours.keys import GRID_KEY, LOCALIZED_KEY, MAP_TO_ODOM_KEY, POSE_KEY
 from homing.behaviours.registry import Param, register_service
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
@@ -39,17 +41,18 @@ PUBLISH_PERIOD = 1.0  # [s] between /map/grid snapshots
 @register_service(
     "grid_slam",
     params=(
-        Param("resolution", float, 0.05, "m", "cell size of the occupancy grid"),
+        Param("resolution", float, 0.05, "m", "cell size of the occupancy grid", minimum=0.01, maximum=1.0),
         Param("use_matcher", bool, True, "", "correct odometry by scan-to-map matching (false: odometry-only baseline)"),
-        Param("publish_period", float, PUBLISH_PERIOD, "s", "adapter time between grid snapshots on /map/grid (0: live)"),
+        Param("publish_period", float, PUBLISH_PERIOD, "s", "adapter time between grid snapshots on /map/grid (0: live)",
+              minimum=0.0),
     ),
-    writes=(GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY),
+    writes=(GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY),
 )
 class GridSlamService:
     """Scan-matched log-odds occupancy grid; writes ``/map/grid``, ``/map/pose`` and ``/map/map_to_odom``."""
 
     name = "grid_slam"
-    writes = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY)
+    writes = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY)
 
     def __init__(self, resolution: float = 0.05, use_matcher: bool = True,
                  publish_period: float = PUBLISH_PERIOD) -> None:
@@ -78,6 +81,23 @@ class GridSlamService:
         self.bb.set(GRID_KEY, self.published, overwrite=True)
         self.bb.set(POSE_KEY, self.slam.pose, overwrite=True)
         self.bb.set(MAP_TO_ODOM_KEY, self.slam.map_to_odom, overwrite=True)
+        self.bb.set(LOCALIZED_KEY, not self.slam.lost, overwrite=True)
+
+    def snapshot(self, snap: Any) -> None:
+        """Keep the grid in a run directory's snapshot (:mod:`homing.lifecycle.rundir`)."""
+        snap.grid = self.slam.grid.copy()
+
+    def restore(self, snap: Any, obs: Observation) -> None:
+        """Start from a snapshot's grid: on the dock, at the dock's pose; anywhere else, lost (it finds itself)."""
+        if snap.grid is None:
+            return
+        self.slam.adopt(snap.grid)
+        if obs.battery.on_dock and snap.dock is not None:
+            self.slam.set_pose(snap.dock, obs.odom.pose)
+        else:
+            self.slam.lost = True
+        self.published = self.slam.grid if self.publish_period == 0 else self.slam.grid.copy()
+        self.bb.set(GRID_KEY, self.published, overwrite=True)
 
     def shutdown(self) -> None:
         """Publish the final grid, so whoever saves the map at the end gets every scan."""

@@ -71,12 +71,37 @@ class _ReportsFailure(LongAction):
         return Status.FAILURE
 
 
+class _Navigating(_ReportsFailure):
+    """Drives with the navigation service's navigator (``self.navigator``, taken in ``on_start``) one step a tick."""
+
+    navigator: Any = None
+
+    def step_navigator(self) -> Status:
+        """One step of ``self.navigator`` on this tick's observation and map pose: drive, report, map the status."""
+        obs, pose = self.observation(), self.read(POSE_KEY)
+        if obs is None or pose is None:
+            self.feedback_message = "waiting for the map pose"
+            return Status.RUNNING
+        status, cmd, fb = self.navigator.step(obs, self.read(GRID_KEY), pose, self.read(MAP_TO_ODOM_KEY))
+        self.drive(cmd.v, cmd.omega)
+        self.feedback_message = fb.message
+        if status is NavStatus.SUCCEEDED:
+            return Status.SUCCESS
+        if status in (NavStatus.FAILED, NavStatus.CANCELLED):
+            return self.fail(failure_reason(fb.error), fb.message)
+        return Status.RUNNING
+
+    def on_cancel(self) -> None:
+        if self.navigator is not None:
+            self.navigator.cancel()
+
+
 @register("NavigateToPose")
-class NavigateToPose(_ReportsFailure):
+class NavigateToPose(_Navigating):
     """Drive to a goal pose in ``map`` with the navigation service's planner and controller; RUNNING while driving.
 
-    The goal is ``x``, ``y``, ``theta`` when given, otherwise the Pose2 at
-    ``goal_key``. ``theta`` nan: any final heading.
+    The goal is ``x``, ``y``, ``theta`` when given, otherwise the pose at
+    ``goal_key`` (a Pose2 or ``[x, y, theta]``). ``theta`` nan: any final heading.
     """
 
     PARAMS: ClassVar[tuple[Param, ...]] = (
@@ -84,8 +109,8 @@ class NavigateToPose(_ReportsFailure):
         Param("y", float, math.nan, "m", "goal y in map"),
         Param("theta", float, math.nan, "rad", "goal heading in map (nan: any)"),
         Param("goal_key", str, "/nav/goal", doc="blackboard key holding a Pose2 goal when x/y are not given"),
-        Param("xy_tolerance", float, 0.15, "m", "reached within this distance"),
-        Param("yaw_tolerance", float, 0.25, "rad", "and this heading error"),
+        Param("xy_tolerance", float, 0.15, "m", "reached within this distance", above=0.0),
+        Param("yaw_tolerance", float, 0.25, "rad", "and this heading error", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -107,7 +132,9 @@ class NavigateToPose(_ReportsFailure):
         if self.navigator is None:
             return self.fail("no_navigator", "no navigation service (add 'navigation' to services)")
         if math.isnan(self.x) or math.isnan(self.y):
-            goal = self.read(self.goal_key)
+            from homing.behaviours.paths import as_pose  # paths builds on this module
+
+            goal = as_pose(self.read(self.goal_key))
             if goal is None:
                 return self.fail("no_goal", f"nothing at {self.goal_key}")
         else:
@@ -117,22 +144,7 @@ class NavigateToPose(_ReportsFailure):
         return None
 
     def on_running(self) -> Status:
-        obs, pose = self.observation(), self.read(POSE_KEY)
-        if obs is None or pose is None:
-            self.feedback_message = "waiting for the map pose"
-            return Status.RUNNING
-        status, cmd, fb = self.navigator.step(obs, self.read(GRID_KEY), pose, self.read(MAP_TO_ODOM_KEY))
-        self.drive(cmd.v, cmd.omega)
-        self.feedback_message = fb.message
-        if status is NavStatus.SUCCEEDED:
-            return Status.SUCCESS
-        if status in (NavStatus.FAILED, NavStatus.CANCELLED):
-            return self.fail(failure_reason(fb.error), fb.message)
-        return Status.RUNNING
-
-    def on_cancel(self) -> None:
-        if self.navigator is not None:
-            self.navigator.cancel()
+        return self.step_navigator()
 
 
 class _MotionLeaf(_ReportsFailure):
@@ -174,7 +186,7 @@ class Spin(_MotionLeaf):
 
     PARAMS = (
         Param("angle", float, 2 * math.pi, "rad", "relative turn, counter-clockwise positive"),
-        Param("omega", float, 1.0, "rad/s", "turning speed"),
+        Param("omega", float, 1.0, "rad/s", "turning speed", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -194,8 +206,8 @@ class BackUp(_MotionLeaf):
     """Drive straight backwards ``distance`` at ``speed``; fails rather than touch what the scan sees behind."""
 
     PARAMS = (
-        Param("distance", float, 0.15, "m", "how far to back up"),
-        Param("speed", float, 0.05, "m/s", "backing speed"),
+        Param("distance", float, 0.15, "m", "how far to back up", above=0.0),
+        Param("speed", float, 0.05, "m/s", "backing speed", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )

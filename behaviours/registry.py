@@ -38,6 +38,10 @@ class Param:
 
     ``type`` is ``float``, ``int``, ``bool``, ``str``, ``list`` or a tuple of
     them; ``choices`` restricts a string to a set (e.g. plugin names).
+    A number must lie in ``[minimum, maximum]`` (in ``unit``) and above
+    ``above`` when they are given — a negative distance or a zero speed is
+    a mistake, not something to run — and must be finite (NaN is accepted
+    only where the default is NaN, which then means "not given").
     """
 
     name: str
@@ -46,6 +50,9 @@ class Param:
     unit: str = ""
     doc: str = ""
     choices: tuple[str, ...] = ()
+    minimum: float | None = None
+    maximum: float | None = None
+    above: float | None = None  # exclusive minimum
 
     @property
     def required(self) -> bool:
@@ -63,7 +70,9 @@ class NodeSpec:
     ``slots`` names the children a control node takes, each passed to the
     factory as a keyword: ``("child",)`` for a decorator (the default when
     empty), ``("children",)`` for a composite's list, or named branches such
-    as ``("child", "recovery")``. A key in ``reads``/``writes`` that starts
+    as ``("child", "recovery")``; the names in ``optional`` may be left out
+    (the factory then gets ``None`` for them, e.g. the ``else`` branch of
+    ``if_then_else``). A key in ``reads``/``writes`` that starts
     with ``$`` names a parameter whose value is the key (e.g. ``"$key"`` for
     a blackboard leaf whose ``key`` parameter says which entry it sets).
     """
@@ -77,6 +86,7 @@ class NodeSpec:
     doc: str = ""
     source: str = "homing"
     slots: tuple[str, ...] = ()
+    optional: tuple[str, ...] = ()
 
     def param(self, name: str) -> Param | None:
         return next((p for p in self.params if p.name == name), None)
@@ -118,12 +128,13 @@ def register(
     reads: tuple[str, ...] | None = None,
     writes: tuple[str, ...] | None = None,
     slots: tuple[str, ...] = (),
+    optional: tuple[str, ...] = (),
 ) -> Callable[[B], B]:
     """Class decorator: register a behaviour class as a mission node.
 
     Declarations default to the class attributes ``PARAMS``, ``READS`` and
-    ``WRITES``; the doc is the class docstring's first paragraph. ``slots``:
-    see :class:`NodeSpec` (only control nodes need it).
+    ``WRITES``; the doc is the class docstring's first paragraph. ``slots``
+    and ``optional``: see :class:`NodeSpec` (only control nodes need them).
     """
 
     def wrap(cls: B) -> B:
@@ -139,6 +150,7 @@ def register(
             doc=doc,
             source=cls.__module__,
             slots=tuple(slots),
+            optional=tuple(optional),
         )
         if node in NODES and NODES[node].factory is not cls:
             raise ValueError(f"node '{node}' registered twice ({NODES[node].source} and {spec.source})")

@@ -36,10 +36,10 @@ import math
 from typing import Any
 
 from homing.behaviours.base import HomingBehaviour
-from homing.behaviours.keys import GRID_KEY, MAP_TO_ODOM_KEY, POSE_KEY, TAGS_KEY
+from homing.behaviours.keys import FOCUS_KEY, GRID_KEY, MAP_TO_ODOM_KEY, POSE_KEY, TAGS_KEY
 from homing.behaviours.registry import Param, register, register_service
 from homing.robot import Observation, Pose2, RobotAdapter
-from py_trees.common import Status
+from py_trees.common import Access, Status
 
 LANDMARKS_KEY = "/slam/landmarks"
 REBUILD_SHIFT = 0.03  # [m] a keyframe moved this far since drawn → rebuild the grid
@@ -51,14 +51,16 @@ TOUR_GOAL_KEY = "/tag_tour/goal"
 @register_service(
     "tag_slam",
     params=(
-        Param("tag_size", float, 0.16, "m", "black square's edge of the tags"),
-        Param("dock_tag", int, 0, "", "id of the dock's tag, the map's anchor (-1: none)"),
-        Param("keyframe_distance", float, 0.25, "m", "odometry travelled before a new keyframe"),
-        Param("keyframe_angle", float, 0.35, "rad", "odometry turn before a new keyframe"),
+        Param("tag_size", float, 0.16, "m", "black square's edge of the tags", above=0.0),
+        Param("dock_tag", int, 0, "", "id of the dock's tag, the map's anchor (-1: none)", minimum=-1),
+        Param("keyframe_distance", float, 0.25, "m", "odometry travelled before a new keyframe", above=0.0),
+        Param("keyframe_angle", float, 0.35, "rad", "odometry turn before a new keyframe", above=0.0),
         Param("robust", str, "cauchy", "", "M-estimator on tag factors", choices=("cauchy", "huber", "none")),
-        Param("max_range", float, 3.0, "m", "tags farther than this are ignored"),
-        Param("resolution", float, 0.05, "m", "cell size of the rebuilt occupancy grid"),
+        Param("max_range", float, 3.0, "m", "tags farther than this are ignored", above=0.0),
+        Param("resolution", float, 0.05, "m", "cell size of the rebuilt occupancy grid", minimum=0.01, maximum=1.0),
         Param("grid", bool, True, "", "own the grid and the pose (false: map the tags in grid_slam's frame, per trip)"),
+        Param("image_rate", float, 0.0, "Hz", "look for tags in at most this many frames a second (0: every frame); "
+              "every frame while a leaf asks to (/perception/focus_until)"),
     ),
     writes=(TAGS_KEY, LANDMARKS_KEY, MAP_TO_ODOM_KEY, POSE_KEY, GRID_KEY),
 )
@@ -70,7 +72,7 @@ class TagSlamService:
 
     def __init__(self, tag_size: float = 0.16, dock_tag: int = 0, keyframe_distance: float = 0.25,
                  keyframe_angle: float = 0.35, robust: str = "cauchy", max_range: float = 3.0,
-                 resolution: float = 0.05, grid: bool = True) -> None:
+                 resolution: float = 0.05, grid: bool = True, image_rate: float = 0.0) -> None:
         from homing.mapping.landmark_slam import LandmarkSlam, SlamConfig
         from homing.perception.apriltag import TagDetector, TagFilter
         from homing.perception.tag_wall import TagPerception
@@ -83,6 +85,10 @@ class TagSlamService:
         )
         self.slam = LandmarkSlam(self.config)
         self.owns_grid = grid
+        if not (math.isfinite(image_rate) and image_rate >= 0):
+            raise ValueError(f"image_rate must be ≥ 0 Hz, not {image_rate}")
+        self.image_period = 1.0 / image_rate if image_rate > 0 else 0.0  # [s]
+        self._next_detect = -math.inf
         self.sessions = 1
         self._was_docked = False
         self.resolution = resolution
@@ -98,11 +104,12 @@ class TagSlamService:
 
         self.robot = robot
         self.bb = blackboard
+        blackboard.register_key(key=FOCUS_KEY, access=Access.READ)
         self._grid = OccupancyGrid(self.resolution)
 
     def update(self, obs: Observation) -> None:
         """Detect, update SLAM and write the blackboard (bounded work: one iSAM2 update per keyframe)."""
-        tags = self.perception.measure(obs)
+        tags = self.perception.measure(obs, detect=self._wants_image(obs))
         if not self.owns_grid:
             self._update_tags_only(obs, tags)
             return
@@ -115,6 +122,16 @@ class TagSlamService:
         self.bb.set(MAP_TO_ODOM_KEY, self.slam.map_to_odom, overwrite=True)
         self.bb.set(POSE_KEY, self.slam.pose(obs.odom.pose), overwrite=True)
         self.bb.set(GRID_KEY, self._grid, overwrite=True)
+
+    def _wants_image(self, obs: Observation) -> bool:
+        """Whether to look for tags in this tick's image: at ``image_rate``, or every new frame when asked to."""
+        if self.image_period <= 0.0 or obs.image is None:
+            return True
+        focus = self._get(FOCUS_KEY)
+        if (focus is not None and obs.stamp <= focus) or obs.stamp >= self._next_detect:
+            self._next_detect = obs.stamp + self.image_period
+            return True
+        return False
 
     def _update_tags_only(self, obs: Observation, tags: list[Any]) -> None:
         pose, map_to_odom = self._get(POSE_KEY), self._get(MAP_TO_ODOM_KEY)
@@ -132,6 +149,15 @@ class TagSlamService:
         """Tag id → (pose in map, (3, 3) marginal covariance): the state a run directory keeps."""
         self.slam.flush()
         return self.slam.landmark_estimates()
+
+    def snapshot(self, snap: Any) -> None:
+        """Keep the tags' estimates (the trip's graph folded into priors) in a run directory's snapshot."""
+        snap.landmarks = self.landmark_estimates()
+
+    def restore(self, snap: Any, obs: Observation) -> None:
+        """Start a new graph from a snapshot's tag estimates (the map frame is the grid's, set at the first update)."""
+        if snap.landmarks:
+            self.new_session(None, priors=dict(snap.landmarks))
 
     def new_session(self, map_to_odom: Pose2 | None = None,
                     priors: dict[int, tuple[Pose2, Any]] | None = None) -> None:
@@ -205,10 +231,11 @@ class NextTagView(HomingBehaviour):
     """
 
     PARAMS = (
-        Param("distance", float, 1.0, "m", "how far in front of the tag the view pose is"),
+        Param("distance", float, 1.0, "m", "how far in front of the tag the view pose is", above=0.0),
         Param("goal_key", str, TOUR_GOAL_KEY, doc="blackboard key the Pose2 goal is written to"),
-        Param("anchor_tag", int, -1, "", "the map's anchor tag (the dock's) revisited every anchor_every picks"),
-        Param("anchor_every", int, 0, "", "every n-th pick is the anchor tag (0: never singled out)"),
+        Param("anchor_tag", int, -1, "", "the map's anchor tag (the dock's) revisited every anchor_every picks",
+              minimum=-1),
+        Param("anchor_every", int, 0, "", "every n-th pick is the anchor tag (0: never singled out)", minimum=0),
     )
     READS = (LANDMARKS_KEY, POSE_KEY)
     WRITES = ("$goal_key",)
@@ -254,8 +281,8 @@ class NextWallView(HomingBehaviour):
     """
 
     PARAMS = (
-        Param("distance", float, 1.2, "m", "how far from the wall the view pose is"),
-        Param("spacing", float, 2.0, "m", "between view poses along a wall"),
+        Param("distance", float, 1.2, "m", "how far from the wall the view pose is", above=0.0),
+        Param("spacing", float, 2.0, "m", "between view poses along a wall", above=0.0),
         Param("goal_key", str, TOUR_GOAL_KEY, doc="blackboard key the Pose2 goal is written to"),
     )
     READS = (GRID_KEY, POSE_KEY)

@@ -29,8 +29,9 @@ how good a map the run built), and bumper presses. Ratios to
 ``nearest`` and to ``explore_lite`` are computed run by run (same world,
 same seed), then the median is reported.
 
-Worlds default to the bundled ``lab`` and the six floor plans in
-``../shared/worlds/`` when present. Runs go to ``--workers`` processes, or to
+Worlds default to the bundled ``lab`` and the six public floor plans when
+found (``$HOMING_WORLDS``, or ``shared/worlds`` beside the working directory or
+its parent). Runs go to ``--workers`` processes, or to
 a Ray cluster with ``--engine ray [--address ADDR]``
 (:mod:`homing.benchmarks.engine`: the same JSON for the same seeds; a run
 that fails is listed with its seed under ``failed``).
@@ -47,7 +48,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from homing.benchmarks.common import print_table, progress_bar, write_json
+from homing.benchmarks.common import find_plans, print_table, progress_bar, write_json
 from homing.benchmarks.engine import (
     add_engine_arguments,
     engine_from_args,
@@ -58,7 +59,6 @@ from homing.robot import Pose2
 
 STRATEGY_ORDER = ("nearest", "largest_closest", "largest_random", "largest_random_raw", "explore_lite", "gain_rate",
                   "frontier_travel")
-SHARED_WORLDS = Path(__file__).resolve().parent.parent.parent / "shared" / "worlds"
 MISSION = Path(__file__).resolve().parent.parent / "missions" / "explore.yaml"
 COVERAGE_PERIOD = 5.0  # [s] adapter time between coverage samples (time to 95 %, and the efficiency taken then)
 COVERAGE_TARGET = 0.95
@@ -96,13 +96,10 @@ class RunResult:
 
 
 def world_specs(names: list[str] | None) -> list[str]:
-    """World specs to run: the given ones, or ``lab`` plus the shared floor plans that exist."""
+    """World specs to run: the given ones, or ``lab`` plus the public floor plans found."""
     if names:
         return names
-    specs = ["lab"]
-    if SHARED_WORLDS.is_dir():
-        specs += [str(p) for p in sorted(SHARED_WORLDS.glob("*.yaml"))]
-    return specs
+    return ["lab", *sorted(str(p) for p in find_plans(why="exploring lab only").values())]
 
 
 def world_label(spec: str) -> str:
@@ -254,18 +251,21 @@ def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
 
 # -- CLI ------------------------------------------------------------------------------------------------
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from homing.missions.commands._args import count, output_file, output_folder, positive
+
     parser.add_argument("--worlds", nargs="+", metavar="WORLD",
-                        help="bundled names or YAML paths (default: lab and ../shared/worlds/*.yaml)")
+                        help="bundled names or YAML paths (default: lab and the public floor plans found)")
     parser.add_argument("--strategies", nargs="+", default=list(STRATEGY_ORDER), metavar="NAME",
                         help=f"frontier strategies (default: all: {', '.join(STRATEGY_ORDER)})")
-    parser.add_argument("--seeds", type=int, default=5, help="seeds per world and strategy (0..N-1)")
-    parser.add_argument("--minutes", type=float, default=30.0, help="simulated minutes per run (thesis: 30)")
+    parser.add_argument("--seeds", type=count, default=5, help="seeds per world and strategy (0..N-1)")
+    parser.add_argument("--minutes", type=positive, default=30.0, help="simulated minutes per run (thesis: 30)")
     add_engine_arguments(parser)
-    parser.add_argument("--runs-json", metavar="PATH", help="also write every run's figures to PATH")
+    parser.add_argument("--runs-json", metavar="PATH", type=output_file("--runs-json"),
+                        help="also write every run's figures to PATH")
     parser.add_argument("--from-runs", nargs="+", metavar="PATH",
                         help="run nothing: tabulate the runs saved by earlier --runs-json (e.g. baselines and "
                              "the default run separately), filtered by --worlds/--strategies when given")
-    parser.add_argument("--save-maps", metavar="DIR",
+    parser.add_argument("--save-maps", metavar="DIR", type=output_folder("--save-maps"),
                         help="save each run's final grid as DIR/WORLD_STRATEGY_SEED.yaml (+ .pgm; see homing map show)")
 
 
@@ -277,8 +277,6 @@ def run(args: argparse.Namespace) -> int:
     bad = [s for s in args.strategies if s not in STRATEGIES]
     if bad:
         raise UserError(f"unknown strategy {', '.join(bad)} (known: {', '.join(sorted(STRATEGIES))})")
-    if args.seeds < 1 or args.minutes <= 0:
-        raise UserError("--seeds must be ≥ 1 and --minutes positive")
     engine = engine_from_args(args)
     worlds = world_specs(args.worlds)
     for w in worlds:

@@ -1,4 +1,4 @@
-"""Hardware adapters over the emulated robot: packets per second, command-to-motion latency, line noise.
+"""Hardware adapters over the emulated robot: packets per second, command-to-motion latency, line noise, camera stream.
 
 Runs :class:`homing.emulators.emulation.Emulation` (the ``lab`` world) in
 this process and drives it through :class:`homing.robot.hardware.robot.HardwareRobot`,
@@ -10,13 +10,21 @@ clock. Reports:
   base's 50 Hz, the lidar's 5.5 Hz × 360 nodes);
 - ``latency_ms``: from ``command(0, 0.5)`` on a still robot to the first
   feedback packet whose gyro shows the turn (median and p95 over
-  ``--trials``): the command's bytes, the firmware's 20 ms cycle, the
-  feedback's bytes, the adapter's thread;
+  ``--trials``): the command's bytes, the emulated base's dead time (the
+  real base's 200 ms, ``homing.emulators.kobuki.DEAD_TIME``), the
+  firmware's 20 ms cycle, the feedback's bytes, the adapter's thread;
 - per line-noise level (each byte the devices send has a bit flipped with
   probability ``flip``; each write also gets a garbage burst or is cut short
   with probability 20·flip): packets decoded, dropped for a bad checksum,
   resynchronisations and bytes skipped, for the base and the lidar, and the
-  odometry's distance from the simulator's own odometry at the end [mm].
+  odometry's distance from the simulator's own odometry at the end [mm],
+  and the camera's frames per second: published on the MJPEG stream and
+  received by the camera adapter;
+- ``camera_latency_ms``: from the moment a frame is rendered to the moment
+  the camera adapter holds it, decoded and rectified (median and p95 over
+  ``--frames`` frames at the simulator's 3 Hz, rendered at the dock's
+  staging pose with the frame's number drawn in its top rows): rendering,
+  JPEG encoding, HTTP on localhost, OpenCV's FFmpeg demuxer and decoder.
 """
 
 from __future__ import annotations
@@ -24,9 +32,11 @@ from __future__ import annotations
 import argparse
 import statistics
 import tempfile
+import threading
 import time
 from typing import Any
 
+import numpy as np
 from homing.benchmarks.common import print_table, write_json
 
 NOISE = (0.0, 1e-4, 1e-3, 1e-2)  # per-byte bit-flip probabilities
@@ -35,6 +45,7 @@ NOISE = (0.0, 1e-4, 1e-3, 1e-2)  # per-byte bit-flip probabilities
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seconds", type=float, default=10.0, help="wall-clock seconds per noise level (default 10)")
     parser.add_argument("--trials", type=int, default=20, help="command-to-motion trials (default 20)")
+    parser.add_argument("--frames", type=int, default=30, help="camera latency frames (default 30)")
     parser.add_argument("--seed", type=int, default=1)
 
 
@@ -83,6 +94,75 @@ def _latency(robot: Any, trials: int) -> list[float]:
     return out
 
 
+BAR_ROWS = 16  # [px] the frame number's stripe at the top of a latency frame
+BAR_BITS = 10
+
+
+def _draw_number(image: np.ndarray, k: int) -> None:
+    """Draw ``k`` as BAR_BITS black/white blocks across the top rows (read back by :func:`_read_number`)."""
+    w = image.shape[1] // BAR_BITS
+    for b in range(BAR_BITS):
+        image[:BAR_ROWS, b * w : (b + 1) * w] = 255 if k >> b & 1 else 0
+
+
+def _read_number(image: np.ndarray) -> int:
+    w = image.shape[1] // BAR_BITS
+    return sum(1 << b for b in range(BAR_BITS) if image[BAR_ROWS // 2, b * w + w // 2].mean() > 128)
+
+
+def _camera_latency(frames: int, seed: int) -> tuple[list[float], list[float]]:
+    """Latencies [ms] of ``frames`` numbered frames streamed at the camera's rate: from rendering, and from
+    publishing (JPEG encoding onwards), to the adapter holding the frame."""
+    from homing.emulators.camera_stream import MjpegServer
+    from homing.robot.hardware.camera import UvcCamera, pinhole
+    from homing.sim import SimRobot, load_world
+
+    world = load_world("lab")
+    sim = SimRobot(world, seed=seed, start=world.staging_pose(1.0))
+    assert sim.camera is not None
+    info = sim.camera.info
+    server = MjpegServer()
+    server.start()
+    camera = UvcCamera(server.url, pinhole(info.width, info.height, info.fx, info.fy, info.cx, info.cy), np.eye(4),
+                       time.monotonic, rate=2.0 / sim.camera_period)  # fmt: skip (as the emulator writes it)
+    out: list[float] = []
+    sent: list[float] = []
+    try:
+        opener = threading.Thread(target=camera.open)  # FFmpeg probes two frames before it opens
+        opener.start()
+        due = time.monotonic()
+        while opener.is_alive():
+            server.publish(sim.render().image, time.monotonic())
+            due += sim.camera_period
+            opener.join(max(0.0, due - time.monotonic()))
+        for k in range(1, frames + 1):
+            time.sleep(max(0.0, due - time.monotonic()))  # frames one camera period apart, as the emulator's
+            due += sim.camera_period
+            t0 = time.monotonic()
+            image = sim.render().image.copy()
+            _draw_number(image, k)
+            t1 = time.monotonic()
+            server.publish(image, t0)
+            while time.monotonic() - t0 < 1.0:
+                got = camera.latest()
+                if got is not None and _read_number(got.image) == k:
+                    out.append((got.stamp - t0) * 1e3)
+                    sent.append((got.stamp - t1) * 1e3)
+                    break
+                time.sleep(0.0005)
+    finally:
+        server.stop()  # first: the camera's read returns at once instead of timing out
+        camera.close()
+        sim.close()
+    return out, sent
+
+
+def _percentiles(values: list[float]) -> tuple[float, float]:
+    if not values:
+        return float("nan"), float("nan")
+    return statistics.median(values), sorted(values)[int(0.95 * (len(values) - 1))]
+
+
 def run(args: argparse.Namespace) -> int:
     rows, levels = [], {}
     latency: list[float] = []
@@ -91,6 +171,7 @@ def run(args: argparse.Namespace) -> int:
         emu, robot = _session(flip, args.seed)
         try:
             b0, n0, s0, t0 = robot.base.stats.packets, robot.lidar.reader.stats.nodes, robot.lidar.scans, time.monotonic()
+            f0, p0 = robot.camera.frames, emu.stream.frames
             _drive(robot, args.seconds)
             wall = time.monotonic() - t0
             bs, ls = robot.base.stats, robot.lidar.reader.stats
@@ -102,7 +183,9 @@ def run(args: argparse.Namespace) -> int:
                      "base_checksum_errors": bs.checksum_errors, "base_resyncs": bs.resyncs,
                      "base_skipped": bs.skipped, "lidar_nodes": ls.nodes, "lidar_resyncs": ls.resyncs,
                      "lidar_skipped": ls.skipped, "scans_dropped": robot.lidar.assembler.dropped,
-                     "odom_error_mm": err_mm, "bits_flipped": emu.base_link.noise.flipped}  # fmt: skip
+                     "odom_error_mm": err_mm, "bits_flipped": emu.base_link.noise.flipped,
+                     "camera_published_hz": (emu.stream.frames - p0) / wall,
+                     "camera_hz": (robot.camera.frames - f0) / wall}  # fmt: skip
             levels[f"{flip:g}"] = level
             rows.append((f"{flip:g}", level["base_hz"], bs.checksum_errors, bs.resyncs, level["scan_hz"],
                          level["nodes_per_s"], ls.resyncs, ls.skipped, err_mm))  # fmt: skip
@@ -114,11 +197,20 @@ def run(args: argparse.Namespace) -> int:
     print_table(f"homing bench hardware (lab, {args.seconds:g} s wall clock per noise level)",
                 ["bit flip p", "base Hz", "bad cs", "resync", "scan Hz", "nodes/s", "l.resync", "l.skip",
                  "odom mm"], rows)  # fmt: skip
-    med = statistics.median(latency) if latency else float("nan")
-    p95 = sorted(latency)[int(0.95 * (len(latency) - 1))] if latency else float("nan")
-    print(f"command to motion: median {med:.1f} ms, p95 {p95:.1f} ms over {len(latency)} trials")
+    med, p95 = _percentiles(latency)
     clean = levels["0"]
+    print(f"command to motion: median {med:.1f} ms, p95 {p95:.1f} ms over {len(latency)} trials")
+    print(f"camera stream while driving: {clean['camera_published_hz']:.2f} frames/s published, "
+          f"{clean['camera_hz']:.2f} received by the adapter", flush=True)  # fmt: skip
+    frames, sent = _camera_latency(args.frames, args.seed)
+    cam_med, cam_p95 = _percentiles(frames)
+    sent_med, sent_p95 = _percentiles(sent)
+    print(f"camera, rendered to adapter: median {cam_med:.1f} ms, p95 {cam_p95:.1f} ms; published to adapter: "
+          f"median {sent_med:.1f} ms, p95 {sent_p95:.1f} ms ({len(frames)} of {args.frames} frames)")  # fmt: skip
     write_json(args.json, {"base_hz": clean["base_hz"], "scan_hz": clean["scan_hz"],
                            "nodes_per_s": clean["nodes_per_s"], "latency_ms": med, "latency_p95_ms": p95,
-                           "seconds": args.seconds, "noise": levels})  # fmt: skip
+                           "camera_hz": clean["camera_hz"], "camera_published_hz": clean["camera_published_hz"],
+                           "camera_latency_ms": cam_med, "camera_latency_p95_ms": cam_p95,
+                           "camera_stream_latency_ms": sent_med, "camera_stream_latency_p95_ms": sent_p95,
+                           "camera_frames": len(frames), "seconds": args.seconds, "noise": levels})  # fmt: skip
     return 0

@@ -1,7 +1,7 @@
 """Navigation in the simulator: success, bumper presses, time and path length against the planner's optimum, per controller.
 
-For every world (the six public floor plans in ``../shared/worlds`` and the
-bundled ``lab``) and seed, the simulated TurtleBot backs off its dock and is
+For every world (the six public floor plans, when found: ``$HOMING_WORLDS`` or
+``../shared/worlds``; and the bundled ``lab``) and seed, the simulated TurtleBot backs off its dock and is
 sent through ``--goals`` seeded random goals, each at least ``MIN_LEG`` away
 from the last, among the reachable free cells with room for the robot
 (truth, evaluation only). Every controller (``rpp`` with its ``dwb``
@@ -36,14 +36,11 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-from homing.benchmarks.common import print_table, write_json
+from homing.benchmarks.common import PUBLIC_PLANS, find_plans, print_table, write_json
 
-SHARED_WORLDS = Path(__file__).resolve().parent.parent.parent / "shared" / "worlds"
-DEFAULT_WORLDS = ("room", "corner", "corridor", "loop", "loop_with_corridor", "room_with_corner", "lab")
 RATE = 10.0  # [Hz] control ticks
 MIN_LEG = 3.0  # [m] straight-line distance between consecutive goals
 GOAL_CLEARANCE = 0.45  # [m] goals this far from any wall (truth)
@@ -53,10 +50,13 @@ TRUTH_SLACK = 0.10  # [m] the true pose may miss the goal by the tolerance plus 
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--worlds", nargs="*", default=list(DEFAULT_WORLDS),
-                        help="bundled world names, world YAMLs or map_server YAMLs (default: six public maps + lab)")
-    parser.add_argument("--goals", type=int, default=5, help="goals per world and seed")
-    parser.add_argument("--seeds", type=int, default=1, help="seeds 1..N")
+    from homing.missions.commands._args import count
+
+    parser.add_argument("--worlds", nargs="*",
+                        help="bundled world names, public floor plan names, world YAMLs or map_server YAMLs "
+                             "(default: the six public maps found + lab)")
+    parser.add_argument("--goals", type=count, default=5, help="goals per world and seed")
+    parser.add_argument("--seeds", type=count, default=1, help="seeds 1..N")
     parser.add_argument("--controllers", nargs="*", default=["rpp", "dwb"])
     parser.add_argument("--grids", nargs="*", default=["true"], choices=["true", "slam"],
                         help="grid and pose source: the true map and pose, or live grid SLAM")
@@ -65,8 +65,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _world(name: str) -> Any:
     from homing.sim import load_world
 
-    shared = SHARED_WORLDS / f"{name}.yaml"
-    return load_world(shared if shared.exists() else name)
+    if name in PUBLIC_PLANS:
+        found = find_plans((name,), why=f"'{name}' is not a bundled world either")
+        if found:
+            return load_world(found[name])
+    return load_world(name)
 
 
 def _goals(world: Any, start: Any, n: int, seed: int) -> list[tuple[float, float]]:
@@ -208,6 +211,8 @@ def _summary(legs: list[dict[str, Any]]) -> list[Any]:
 def run(args: argparse.Namespace) -> int:
     all_legs: list[dict[str, Any]] = []
     wall0 = time.perf_counter()
+    if args.worlds is None:
+        args.worlds = [*find_plans(why="navigating in lab only"), "lab"]
     for grid_source in args.grids:
         for controller in args.controllers:
             for name in args.worlds:

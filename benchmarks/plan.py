@@ -1,7 +1,8 @@
 """Global planner timings on 25 m × 25 m floor plans at 0.05 m (500 × 500 cells), per plugin.
 
-Each map_server map given (default: the six public floor plans in
-``../shared/worlds``, 0.1 m, upsampled ×2 to 0.05 m) becomes a costmap; for
+Each map_server map given (default: the six public floor plans, found in
+``$HOMING_WORLDS`` or ``../shared/worlds``, else the bundled lab's; 0.1 m
+maps upsampled ×2 to 0.05 m) becomes a costmap; for
 ``--pairs`` seeded start/goal pairs, chosen far apart among the free cells
 the robot fits in, every planner plans and is timed (wall clock, costmap
 built once beforehand, as a navigator replanning on an unchanged map does).
@@ -16,17 +17,18 @@ import time
 from pathlib import Path
 
 import numpy as np
-from homing.benchmarks.common import print_table, write_json
+from homing.benchmarks.common import find_plans, print_table, write_json
 
-DEFAULT_WORLDS = Path(__file__).resolve().parent.parent.parent / "shared" / "worlds"
 RES = 0.05  # [m] the costmap resolution the target is stated for
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from homing.missions.commands._args import count, seed
+
     parser.add_argument("--maps", nargs="*", default=None,
-                        help="map_server YAML files (default: every *.yaml in ../shared/worlds)")
-    parser.add_argument("--pairs", type=int, default=10, help="start/goal pairs per map")
-    parser.add_argument("--seed", type=int, default=1)
+                        help="map_server YAML files (default: the public floor plans found, else the lab's)")
+    parser.add_argument("--pairs", type=count, default=10, help="start/goal pairs per map")
+    parser.add_argument("--seed", type=seed, default=1)
     parser.add_argument("--planners", nargs="*", default=["dijkstra", "fmm", "astar"])
 
 
@@ -65,11 +67,12 @@ def run(args: argparse.Namespace) -> int:
     from homing.navigation.planner import distance_map, make_planner, path_length
     from homing.robot import Pose2
 
-    from homing.errors import UserError
 
-    maps = [Path(p) for p in args.maps] if args.maps else sorted(DEFAULT_WORLDS.glob("*.yaml"))
+    maps = [Path(p) for p in args.maps] if args.maps else list(find_plans(why="timing on the lab's map").values())
     if not maps:
-        raise UserError(f"no maps given and none found in {DEFAULT_WORLDS}")
+        from homing.sim.world import WORLDS_DIR
+
+        maps = [WORLDS_DIR / "lab_map.yaml"]
     rng = np.random.default_rng(args.seed)
     times: dict[str, list[float]] = {name: [] for name in [*args.planners, "distance_map"]}
     ratios: dict[str, list[float]] = {name: [] for name in args.planners}

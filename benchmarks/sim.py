@@ -2,7 +2,7 @@
 
 Drives the simulated TurtleBot along a fixed open-loop path (undock, turn,
 drive, turn…; collisions allowed) for ``--seconds`` of simulated time in the
-bundled ``lab`` world and in ``../shared/worlds/loop.yaml``, stepping at
+bundled ``lab`` world and in the public ``loop`` floor plan (when found), stepping at
 10 Hz like the mission runner, once with ``camera=False`` and once with the
 camera on (rendering only when a tag can be in view, DESIGN.md). Reports:
 
@@ -19,22 +19,22 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
-from pathlib import Path
 
-from homing.benchmarks.common import print_table, write_json
+from homing.benchmarks.common import find_plans, print_table, write_json
 
 CONTROL_DT = 0.1  # [s] the runner's tick
 # (v [m/s], ω [rad/s], duration [s]): undock, spin, then a loop of drives and turns
 PATH = ((-0.2, 0.0, 4.0), (0.0, 0.8, 8.0), (0.4, 0.0, 5.0), (0.0, 0.8, 2.0), (0.4, 0.1, 6.0),
         (0.0, -0.8, 2.0), (0.3, -0.1, 5.0), (0.0, 0.8, 4.0))
-DEFAULT_LOOP = Path(__file__).resolve().parents[2] / "shared" / "worlds" / "loop.yaml"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--seconds", type=float, default=120.0, help="simulated seconds per run (default 120)")
-    parser.add_argument("--worlds", nargs="+", default=["lab", str(DEFAULT_LOOP)],
-                        help="worlds to drive in (default: lab and ../shared/worlds/loop.yaml)")
-    parser.add_argument("--seed", type=int, default=1)
+    from homing.missions.commands._args import positive, seed
+
+    parser.add_argument("--seconds", type=positive, default=120.0, help="simulated seconds per run (default 120)")
+    parser.add_argument("--worlds", nargs="+",
+                        help="worlds to drive in (default: lab and the public loop.yaml, see $HOMING_WORLDS)")
+    parser.add_argument("--seed", type=seed, default=1)
 
 
 def _commands(seconds: float):  # noqa: ANN202 - generator of (v, ω)
@@ -92,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
     from homing.sim.world import load_world
 
     rows, rtf_l, rtf_c, scan_ms, image_ms = [], [], [], [], []
-    for spec in args.worlds:
+    worlds = args.worlds or ["lab", *map(str, find_plans(("loop",), why="driving in lab only").values())]
+    for spec in worlds:
         world = load_world(spec)
         poses: list = []
         lidar_rtf, _, _ = _drive(world, args.seed, args.seconds, camera=False, poses=poses)

@@ -54,7 +54,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from homing.benchmarks.common import print_table, progress_bar, write_json
+from homing.benchmarks.common import find_plans, print_table, progress_bar, write_json
 from homing.benchmarks.engine import add_engine_arguments
 from homing.benchmarks.slam_score import Collector
 from homing.mapping.landmark_slam import LandmarkSlam, SlamConfig
@@ -348,23 +348,25 @@ def synthetic_timing(poses: int, seed: int = 0) -> dict[str, float]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--seeds", type=int, default=1, help="runs per scenario and world (seeds 0..N-1)")
+    from homing.missions.commands._args import count, positive, whole
+
+    parser.add_argument("--seeds", type=count, default=1, help="runs per scenario and world (seeds 0..N-1)")
     parser.add_argument("--world", action="append", help="world name or YAML (repeatable; default: lab)")
     parser.add_argument(
         "--map-world", action="append", metavar="MAP.yaml",
         help="a map_server map to run in too, with the dock auto-placed and --tags tags added "
-        "(repeatable; default: ../shared/worlds/loop.yaml when it exists)",
+        "(repeatable; default: the public loop.yaml when found, see $HOMING_WORLDS)",
     )  # fmt: skip
-    parser.add_argument("--tags", type=int, default=10, help="tags added to each --map-world")
+    parser.add_argument("--tags", type=whole(0), default=10, help="tags added to each --map-world")
     parser.add_argument("--scenarios", default="loop,explore,cycles,synthetic",
                         help="comma-separated subset of loop, explore, cycles, synthetic")
-    parser.add_argument("--minutes", type=float, default=30.0, help="simulated minutes of the explore scenario")
+    parser.add_argument("--minutes", type=positive, default=30.0, help="simulated minutes of the explore scenario")
     parser.add_argument("--no-tour", action="store_true",
                         help="explore scenario: end when exploration ends instead of touring the mapped tags")
-    parser.add_argument("--cycles", type=int, default=3, help="dock cycles in the cycles scenario")
+    parser.add_argument("--cycles", type=count, default=3, help="dock cycles in the cycles scenario")
     parser.add_argument("--scan-matched", action="store_true",
                         help="also give GTSAM the grid's scan-matched motion between keyframes (robust factor)")
-    parser.add_argument("--poses", type=int, default=10_000, help="keyframes in the synthetic iSAM2 timing graph")
+    parser.add_argument("--poses", type=count, default=10_000, help="keyframes in the synthetic iSAM2 timing graph")
     add_engine_arguments(parser, workers=1)
 
 
@@ -378,8 +380,7 @@ def _worlds(args: argparse.Namespace) -> list[tuple[str, str, int]]:
     out: list[tuple[str, str, int]] = [(w, w, 0) for w in (args.world or ["lab"])]
     maps = args.map_world
     if maps is None:
-        default = Path("../shared/worlds/loop.yaml")
-        maps = [str(default)] if default.is_file() else []
+        maps = [str(p) for p in find_plans(("loop",), why="no --map-world run").values()]
     for m in maps:
         out.append((Path(m).stem + "+tags", str(Path(m).resolve()), args.tags))
     return out
@@ -417,8 +418,6 @@ def run(args: argparse.Namespace) -> int:
     unknown = [s for s in scenarios if s not in SCENARIOS]
     if unknown:
         raise UserError(f"unknown scenario {', '.join(unknown)} (known: {', '.join(SCENARIOS)})")
-    if args.seeds < 1:
-        raise UserError(f"--seeds must be ≥ 1, not {args.seeds}")
     engine = engine_from_args(args)
     worlds = _worlds(args) if any(s != "synthetic" for s in scenarios) else []
     for _, spec, _ in worlds:

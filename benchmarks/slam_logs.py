@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
         outcomes = run_jobs(score_method, jobs, engine, lambda o: advance(_describe(o)))
     out, rows = summarise(outcomes)
     print_table("SLAM on real logs: relation errors (Kümmerle et al. 2009), mean±std and max",
-                ["log", "method", "trans m", "max m", "rot °", "max °", "ms", "cpu ms"], rows, compact=True)
+                ["log", "method", "trans m", "max m", "rot °", "max °", "ms/scan", "cpu ms"], rows)
     write_json(args.json, out)
     return 0 if not out["failed"] else 1
 

@@ -68,8 +68,10 @@ def _time_ticks(tree: py_trees.trees.BehaviourTree, ticks: int) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--ticks", type=int, default=300, help="ticks per round")
-    parser.add_argument("--rounds", type=int, default=7, help="alternating rounds (medians are reported)")
+    from homing.missions.commands._args import count
+
+    parser.add_argument("--ticks", type=count, default=300, help="ticks per round")
+    parser.add_argument("--rounds", type=count, default=7, help="alternating rounds (medians are reported)")
 
 
 def run(args: argparse.Namespace) -> int:

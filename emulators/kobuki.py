@@ -11,12 +11,19 @@ same odometry the simulator's adapter gives, up to the protocol's
 quantisation. Commands it reads: base control (speed [mm/s], radius [mm],
 held until replaced, as the firmware does) and request-extra (answered with
 hardware/firmware versions and a unique id in the next packet).
+
+A base control command reaches the wheels ``dead_time`` after it arrives:
+the real base's firmware (1.2.0) shows about 200 ms between a command and
+the first change in its odometry (measured by a user from a rosbag,
+yujinrobot/kobuki#389; the firmware's source is not public), so the
+controllers are tried against the base's real reaction time.
 """
 
 from __future__ import annotations
 
 import math
 import struct
+from collections import deque
 
 from homing.robot.frames import wrap_angle
 from homing.robot.hardware import kobuki_protocol as kp
@@ -27,16 +34,20 @@ from homing.robot.types import Observation, Pose2
 FIRMWARE = (1, 2, 0)  # major, minor, patch
 HARDWARE = (1, 0, 4)
 PWM_FULL = 0.7  # [m/s] a wheel at this speed runs at 100 % PWM
+DEAD_TIME = 0.2  # [s] from a base control command's arrival to the wheels' response (yujinrobot/kobuki#389)
 
 
 class KobukiFirmware:
     """The base's side of the protocol: commands in, feedback packets out (no port, no clock)."""
 
-    def __init__(self, bias: float = kp.WHEEL_BIAS, wheel_radius: float = WHEEL_RADIUS):
+    def __init__(self, bias: float = kp.WHEEL_BIAS, wheel_radius: float = WHEEL_RADIUS,
+                 dead_time: float = DEAD_TIME):
         self.bias = bias
         self.wheel_radius = wheel_radius
+        self.dead_time = dead_time  # [s]
         self.reader = kp.PacketReader()
-        self.speed, self.radius = 0, 0
+        self.speed, self.radius = 0, 0  # the command the wheels run at
+        self._pending: deque[tuple[float, int, int]] = deque()  # (arrival [s], speed, radius) not yet applied
         self.commands = 0
         self.extra = 0  # request-extra flags to answer in the next packet
         self.ticks = [0.0, 0.0]  # [ticks] left, right, unwrapped
@@ -45,19 +56,22 @@ class KobukiFirmware:
         self.buttons = 0
         self._odom: Pose2 | None = None
 
-    def receive(self, data: bytes) -> None:
-        """Parse command bytes from the host and apply them."""
+    def receive(self, data: bytes, now: float = 0.0) -> None:
+        """Parse command bytes from the host, arrived at ``now`` [s]; base control takes effect ``dead_time`` later."""
         for payload in self.reader.feed(data):
             parts, _ = kp.split_sub_payloads(payload)
             for ident, body in parts:
                 if ident == kp.BASE_CONTROL and len(body) == 4:
-                    self.speed, self.radius = struct.unpack("<hh", body)
+                    speed, radius = struct.unpack("<hh", body)
+                    self._pending.append((now, speed, radius))
                     self.commands += 1
                 elif ident == kp.REQUEST_EXTRA and len(body) == 2:
                     self.extra |= struct.unpack("<H", body)[0]
 
-    def velocity(self) -> tuple[float, float]:
-        """The body velocity (v [m/s], ω [rad/s]) the wheels run at under the last command."""
+    def velocity(self, now: float = math.inf) -> tuple[float, float]:
+        """The body velocity (v [m/s], ω [rad/s]) the wheels run at at ``now`` [s] (the commands due by then)."""
+        while self._pending and self._pending[0][0] + self.dead_time <= now:
+            _, self.speed, self.radius = self._pending.popleft()
         left, right = kp.wheel_speeds(self.speed, self.radius, self.bias)
         return 0.5 * (left + right), (right - left) / self.bias
 

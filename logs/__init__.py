@@ -17,6 +17,7 @@ from homing.logs.runlog import MAGIC, RunLog
 from homing.errors import UserError
 
 BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+MAGIC_PREFIX = MAGIC.split(b" ")[0] + b" "  # "HOMINGLOG "
 
 
 def log_format(path: str | Path) -> str:
@@ -33,14 +34,16 @@ def log_format(path: str | Path) -> str:
             head = f.read(len(MAGIC))
     except OSError as err:
         raise UserError(f"cannot read log: {err.strerror or err}", p) from None
-    return "homing" if head == MAGIC else "carmen"
+    return "homing" if head.startswith(MAGIC_PREFIX) else "carmen"  # any version: RunLog says if it is too new
 
 
-def open_log(path: str | Path, scan_topic: str | None = None, odom_topic: str | None = None) -> RunLog:
-    """Any log homing reads, as a RunLog (``scan_topic``/``odom_topic`` choose a bag's topics)."""
+def open_log(path: str | Path, scan_topic: str | None = None, odom_topic: str | None = None,
+             salvage: bool = False) -> RunLog:
+    """Any log homing reads, as a RunLog (``scan_topic``/``odom_topic`` choose a bag's topics; ``salvage``: a
+    damaged homing run log is read up to the damage, see :class:`homing.logs.runlog.RunLog`)."""
     kind = log_format(path)
     if kind == "homing":
-        return RunLog(path)
+        return RunLog(path, salvage=salvage)
     if kind == "rosbag":
         from homing.logs.rosbag import read_bag
 

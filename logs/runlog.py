@@ -22,8 +22,13 @@ mixed into what the robot sensed: :meth:`RunLog.observations` cannot see it,
 only :meth:`RunLog.truth` can, for evaluation code.
 
 Reading: :class:`RunLog` reads every intact frame (``truncated`` tells
-whether the file ended mid-frame) and replays observations, tag sightings,
-commands and status changes up to an optional time cut. Floats survive
+whether the file ended mid-frame, as a killed run's may) and replays
+observations, tag sightings, commands and status changes up to an optional
+time cut. Damage is told apart from a kill: a frame whose bytes are all
+there but fail their CRC, or one that claims more than any writer writes, is
+corruption, reported with its byte offset (:class:`UserError`; with
+``salvage=True`` the frames before it are read and ``damage`` says where it
+is). A log whose magic line names a newer format version says so. Floats survive
 exactly (JSON's shortest round-trip repr; scan ranges as float32 bytes), so
 an offline replay feeds SLAM the same numbers the online run did.
 """
@@ -34,6 +39,7 @@ import base64
 import json
 import math
 import os
+import re
 import struct
 import time
 import zlib
@@ -59,13 +65,16 @@ from homing.robot.types import (
     Twist2,
 )
 
+from homing.atomic import NEW_FILE_MODE
 from homing.errors import UserError
 
 MAGIC = b"HOMINGLOG 1\n"
 VERSION = 1
 FLUSH_PERIOD = 1.0  # [s] longest a record waits in memory (adapter or wall time)
+MAX_FRAME = 256 * 2**20  # [bytes] no writer writes a bigger frame (one second of a run is ~100 kB): beyond, damage
 JPEG_QUALITY = 85  # camera images in the log (``Recorder(images=True)``)
 _FRAME = struct.Struct("<II")  # payload length, CRC-32
+_MAGIC_LINE = re.compile(rb"HOMINGLOG (\d{1,9})\n")
 
 SCHEMA: dict[str, dict[str, str]] = {
     "obs": {
@@ -108,7 +117,7 @@ def _f32_b64(a: np.ndarray) -> str:
 
 
 def _b64_f32(s: str) -> np.ndarray:
-    return np.frombuffer(base64.b64decode(s), dtype="<f4").astype(np.float32)
+    return np.frombuffer(base64.b64decode(s, validate=True), dtype="<f4").astype(np.float32)
 
 
 def _bat(b: BatteryState | None) -> list[Any] | None:
@@ -133,6 +142,86 @@ def decode_tag(a: Sequence[Any]) -> TagMeasurement:
     return TagMeasurement(int(a[0]), a[1], Pose2(x, y, th), np.array(a[5], dtype=float).reshape(3, 3),
                           a[6], a[7], a[8], a[9], int(a[10]), h, T, np.zeros((4, 2)),
                           str(a[12]) if len(a) > 12 else "tag")
+
+
+def _read_frame(raw: bytes, pos: int, first: bool) -> tuple[str, Any, int]:
+    """(problem, decoded frame, end offset) of the frame at ``pos``; problem "" if sound, "torn" if cut short."""
+    if pos + _FRAME.size > len(raw):
+        return "torn", None, len(raw)
+    n, crc = _FRAME.unpack_from(raw, pos)
+    if n > MAX_FRAME:
+        return f"a frame header claims {n} bytes, more than any writer writes (the header is damaged)", None, 0
+    start, end = pos + _FRAME.size, pos + _FRAME.size + n
+    if end > len(raw):
+        return "torn", None, len(raw)
+    if zlib.crc32(raw[start:end]) != crc:
+        return f"the frame at bytes {pos}–{end - 1} fails its CRC check (its data is damaged)", None, 0
+    try:
+        frame = json.loads(zlib.decompress(raw[start:end]))
+    except (zlib.error, ValueError) as err:
+        return f"the frame at bytes {pos}–{end - 1} does not decode ({err})", None, 0
+    problem = _check_header(frame) if first else _check_records(frame)
+    return (f"the frame at bytes {pos}–{end - 1}: {problem}" if problem else ""), frame, end
+
+
+def _before(frames: list[Any]) -> str:
+    stamps = [r["t"] for f in frames[1:] for r in f["records"]]
+    return f"{len(frames)} intact frames before it, up to t={max(stamps):.1f} s" if stamps else \
+        f"{len(frames)} intact frames before it"
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _numbers(v: Any, n: int) -> bool:
+    return isinstance(v, list) and len(v) == n and all(_number(x) for x in v)
+
+
+def _battery(v: Any) -> bool:
+    return v is None or (isinstance(v, list) and len(v) == 4 and _number(v[0]) and _number(v[1])
+                         and v[2] in {s.value for s in ChargingSource} and v[3] in {s.value for s in ChargingState})
+
+
+_FIELDS: dict[str, dict[str, Any]] = {  # what each field of a record must be, per kind (SCHEMA says what it means)
+    "obs": {"odom": lambda v: _numbers(v, 6), "bump": lambda v: isinstance(v, list) and len(v) == 3,
+            "ir": lambda v: isinstance(v, list) and len(v) == 3 and all(isinstance(x, int) for x in v),
+            "bat": _battery, "cbat": _battery, "scan_t": lambda v: v is None or _number(v),
+            "img_t": lambda v: v is None or _number(v)},
+    "scan": {"amin": _number, "ainc": _number, "rmin": _number, "rmax": _number, "lp": lambda v: _numbers(v, 3),
+             "r": lambda v: isinstance(v, str)},
+    "tags": {"m": lambda v: isinstance(v, list) and all(isinstance(m, list) and len(m) >= 12 for m in v)},
+    "cmd": {"v": _number, "w": _number},
+    "status": {"node": lambda v: isinstance(v, str), "s": lambda v: isinstance(v, str)},
+    "truth": {"pose": lambda v: _numbers(v, 3)},
+    "event": {"what": lambda v: isinstance(v, str), "data": lambda v: True},
+    "ref": {"pose": lambda v: _numbers(v, 3)},
+    "plan": {"path": lambda v: v is None or (isinstance(v, list) and all(_numbers(q, 2) for q in v)),
+             "goal": lambda v: v is None or _numbers(v, 3)},
+    "img": {"jpeg": lambda v: isinstance(v, str), "K": lambda v: _numbers(v, 4), "size": lambda v: _numbers(v, 2)},
+}  # a kind not listed here (a later addition) is kept unchecked: readers pick the kinds they know
+
+
+def _check_header(frame: Any) -> str:
+    if not isinstance(frame, dict) or not isinstance(frame.get("meta", {}), dict):
+        return "the header is not a mapping with 'meta'"
+    return ""
+
+
+def _check_records(frame: Any) -> str:
+    """Why a frame's records do not fit the schema ("" if they do)."""
+    records = frame.get("records") if isinstance(frame, dict) else None
+    if not isinstance(records, list):
+        return "no 'records' list"
+    for i, r in enumerate(records):
+        kind = r.get("k") if isinstance(r, dict) else None
+        if not isinstance(kind, str) or not _number(r.get("t")):
+            return f"record {i} has no kind and stamp"
+        fields = _FIELDS.get(kind, {})
+        for name, ok in fields.items():
+            if name not in r or not ok(r[name]):
+                return f"record {i} ({kind}) has a bad '{name}'"
+    return ""
 
 
 def scan_record(scan: Scan) -> dict[str, Any]:
@@ -167,7 +256,7 @@ class Recorder:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.flush_period = float(flush_period)
         self.fsync = fsync
-        self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, NEW_FILE_MODE)  # less the umask
         os.write(self._fd, MAGIC)
         self._write_frame({"meta": dict(meta or {}), "schema": SCHEMA, "version": VERSION})
         self._buf: list[dict[str, Any]] = []
@@ -302,36 +391,51 @@ class Tick:
 
 
 class RunLog:
-    """A run log read back: every intact frame, up to the first torn one.
+    """A run log read back: every intact frame, up to the first torn or damaged one.
 
     ``meta`` and ``schema`` come from the header; ``truncated`` is True if
-    the file ended inside a frame (a killed run) or a frame failed its CRC.
-    ``warnings`` lists what a reader skipped (an imported log's malformed
-    lines, each naming its place); :meth:`from_records` builds one from
-    records in memory (the importers of :mod:`homing.logs`).
+    the file ended inside a frame (a killed run). A damaged frame (bytes all
+    there, CRC wrong; an impossible length; a record that does not fit the
+    schema) raises :class:`UserError` naming its byte offset, unless
+    ``salvage`` is set: then reading stops before it and ``damage`` holds
+    the report. ``warnings`` lists what a reader skipped (an imported log's
+    malformed lines, each naming its place); :meth:`from_records` builds one
+    from records in memory (the importers of :mod:`homing.logs`).
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, *, salvage: bool = False) -> None:
         self.path = Path(path)
         try:
             raw = self.path.read_bytes()
         except OSError as err:
             raise UserError(f"cannot read run log: {err.strerror}", self.path) from None
-        if not raw.startswith(MAGIC):
+        magic = _MAGIC_LINE.match(raw)
+        if magic is None:
             raise UserError("not a homing run log (bad magic line)", self.path, 1, 1)
-        frames, self.truncated = [], False
-        pos = len(MAGIC)
+        version = int(magic.group(1))
+        if version > VERSION:
+            raise UserError(f"run log format version {version} is newer than this homing reads (version {VERSION}): "
+                            "replay it with a newer homing", self.path, 1, 1)
+        if version != VERSION:
+            raise UserError(f"unknown run log format version {version} (this homing reads version {VERSION})",
+                            self.path, 1, 1)
+        frames: list[Any] = []
+        self.truncated = False
+        self.damage: str | None = None
+        pos = magic.end()
         while pos < len(raw):
-            if pos + _FRAME.size > len(raw):
+            problem, frame, end = _read_frame(raw, pos, first=not frames)
+            if problem == "torn":
                 self.truncated = True
                 break
-            n, crc = _FRAME.unpack_from(raw, pos)
-            data = raw[pos + _FRAME.size: pos + _FRAME.size + n]
-            if len(data) < n or zlib.crc32(data) != crc:
-                self.truncated = True
+            if problem:
+                self.damage = f"byte {pos}: {problem} ({_before(frames)})"
+                if not salvage:
+                    raise UserError(f"corrupted run log at {self.damage}; 'homing replay --salvage' reads up to it",
+                                    self.path)
                 break
-            frames.append(json.loads(zlib.decompress(data)))
-            pos += _FRAME.size + n
+            frames.append(frame)
+            pos = end
         if not frames:
             raise UserError("run log has no header", self.path)
         head = frames[0]
@@ -347,6 +451,7 @@ class RunLog:
         log = cls.__new__(cls)
         log.path, log.meta, log.schema = Path(path), dict(meta), dict(SCHEMA)
         log.records, log.truncated, log.warnings = list(records), False, list(warnings)
+        log.damage = None
         return log
 
     def of_kind(self, kind: str, until: float | None = None) -> Iterator[dict[str, Any]]:
@@ -367,15 +472,18 @@ class RunLog:
             if until is not None and r["t"] > until:
                 break
             k = r["k"]
-            if k == "scan":
-                lp = r["lp"]
-                scan = Scan(r["t"], r["amin"], r["ainc"], _b64_f32(r["r"]), r["rmin"], r["rmax"], Pose2(*lp))
-            elif k == "obs":
-                if current is not None:
-                    yield current
-                current = Tick(self._obs(r, scan), [])
-            elif k == "tags" and current is not None and r["t"] == current.obs.stamp:
-                current.tags.extend(decode_tag(m) for m in r["m"])
+            try:
+                if k == "scan":
+                    lp = r["lp"]
+                    scan = Scan(r["t"], r["amin"], r["ainc"], _b64_f32(r["r"]), r["rmin"], r["rmax"], Pose2(*lp))
+                elif k == "obs":
+                    if current is not None:
+                        yield current
+                    current = Tick(self._obs(r, scan), [])
+                elif k == "tags" and current is not None and r["t"] == current.obs.stamp:
+                    current.tags.extend(decode_tag(m) for m in r["m"])
+            except (ValueError, TypeError, IndexError) as err:  # binascii.Error is a ValueError
+                raise UserError(f"malformed {k} record at t={r['t']} s: {err}", self.path) from None
         if current is not None:
             yield current
 

@@ -35,6 +35,7 @@ T_OCC = 0.40  # log-odds above which a cell reads OCCUPIED
 T_FREE = -0.20  # log-odds below which a cell reads FREE
 GROW_CHUNK = 4.0  # [m] margin added on each side that needs to grow
 NO_RETURN_NEIGHBOURS = 2  # rays each side whose returns bound how far a no-return ray clears
+MIN_RETURN_SHARE = 0.5  # a scan with fewer returns than this is a dropout: its no-return rays clear nothing
 
 
 class OccupancyGrid:
@@ -208,6 +209,10 @@ class OccupancyGrid:
         self.logodds[:] = 0.0
         self._touch()
 
+    def clear_cache(self) -> None:
+        """The log-odds were changed from outside (read back from a file): drop what was derived from them."""
+        self._touch()
+
     def _touch(self) -> None:
         self._data = None
         self.version += 1
@@ -229,6 +234,9 @@ def _clear_lengths(ranges: np.ndarray, hit: np.ndarray, range_max: float, wraps:
     for k in range(1, k_max + 1):
         neighbour_min = np.minimum(neighbour_min, padded[k_max - k: k_max - k + n])
         neighbour_min = np.minimum(neighbour_min, padded[k_max + k: k_max + k + n])
-    # A no-return ray among returns clears to just short of the nearest neighbouring return.
-    bounded = np.where(np.isfinite(neighbour_min), 0.9 * neighbour_min, range_max)
+    # A no-return ray among returns clears to just short of the nearest neighbouring return. One among other
+    # no-return rays clears the sensor's reach, but only in a scan that mostly returned (open space beyond
+    # range): in a scan that mostly did not, the lidar dropped out, and clearing its reach would erase the room.
+    far = range_max if hit.mean() >= MIN_RETURN_SHARE else 0.0
+    bounded = np.where(np.isfinite(neighbour_min), 0.9 * neighbour_min, far)
     return np.where(hit, ranges, np.minimum(bounded, range_max))

@@ -8,6 +8,12 @@ current ``map → odom`` correction, matched against the grid built so far
 pose. ``map → odom`` then absorbs the correction, so between scans the pose in
 ``map`` is ``map_to_odom ⊕ odom``.
 
+Lost and found: a scan that lands on mapped ground but fits it nowhere near
+the predicted pose (a kidnapped robot) is not fused, so the map is not
+redrawn at the wrong place; after two such scans the robot is *lost*, and
+each second one scan is looked for in the whole map
+(:mod:`homing.mapping.relocalize`) until an unambiguous fit is found.
+
 Frames: ``map`` is the ``odom`` frame at the first scan (identity
 ``map_to_odom`` until the first correction). Do not use this when a tag
 landmark SLAM is running and rebuilding the grid: that one owns the grid
@@ -20,13 +26,29 @@ import math
 
 import numpy as np
 from homing.mapping.grid import OccupancyGrid
+from homing.mapping.relocalize import Relocalisation, relocalise
 from homing.mapping.scan_match import CorrelativeMatcher, ScanMatcher
 from homing.robot import Odometry, Pose2, Scan
 from homing.robot.frames import wrap_angle
 from homing.robot.history import PoseHistory
 
 HISTORY = 2.0  # [s] of odometry kept to look up the pose at a scan's stamp
-MIN_MATCH_TRAVEL = 0.0  # [m] match every scan (cheap); raise to skip matching when standing still
+# A scan is matched and fused once the robot has moved this far or turned this much since the last one, or
+# this long has passed (gmapping's linearUpdate / angularUpdate / temporalUpdate, 1 m / 0.5 rad / off there:
+# its particles are costly; Hector SLAM updates its map every 0.4 m / 0.9 rad). Between them odometry carries
+# the pose, which it does to millimetres over a few centimetres; a standing robot still refreshes its map.
+UPDATE_TRAVEL = 0.1  # [m]
+UPDATE_TURN = 0.1  # [rad]
+UPDATE_PERIOD = 1.0  # [s]
+# Lost: a scan whose end points on observed cells (at least MISFIT_POINTS of them: the rest may be new ground) fit
+# them poorly (MISFIT_SCORE; a tracked robot scores ~0.98, a kidnapped one ~0.05) is not fused; LOST_AFTER of them
+# in a row and the robot is lost, and each RELOCALISE_PERIOD a scan is looked for in the whole map
+# (homing.mapping.relocalize).
+MISFIT_POINTS = 40
+MISFIT_SCORE = 0.5
+LOST_AFTER = 2
+RELOCALISE_PERIOD = 1.0  # [s]
+MIN_RETURNS = 30  # a scan with fewer returns (a lidar dropout) is neither matched nor drawn
 MAX_CORRECTION_XY = 0.30  # [m] a larger jump between consecutive scans is rejected as a false match
 MAX_CORRECTION_THETA = math.radians(10.0)  # [rad]
 WARMUP_SCANS = 3  # scans fused at the odometry pose before matching starts
@@ -43,6 +65,9 @@ TRACKING_PRIOR_THETA = math.radians(0.5)
 # Sub-cell Gauss–Newton refinement after the correlative search (scan_match): with the heading held by
 # the prior above it no longer slides along corridors, and it removes the search's 5 cm / 0.5° steps.
 TRACKING_REFINE = True
+# Consecutive matches reuse one likelihood field while the grid has taken at most this many scans since:
+# the field is most of a match's cost, and two scans more of map do not move a tracking match.
+FIELD_MAX_AGE = 2
 
 
 class GridSlam:
@@ -61,11 +86,15 @@ class GridSlam:
         grid: OccupancyGrid | None = None,
         max_correction: tuple[float, float] = (MAX_CORRECTION_XY, MAX_CORRECTION_THETA),
         match_range: float | None = None,
+        update_travel: float = UPDATE_TRAVEL,
+        update_turn: float = UPDATE_TURN,
+        update_period: float = UPDATE_PERIOD,
+        relocalise_when_lost: bool = True,
     ) -> None:
         self.grid = grid if grid is not None else OccupancyGrid(resolution)
         self.matcher: ScanMatcher | None = (
             (matcher or CorrelativeMatcher(prior_xy=TRACKING_PRIOR_XY, prior_theta=TRACKING_PRIOR_THETA,
-                                           refine=TRACKING_REFINE))
+                                           refine=TRACKING_REFINE, field_max_age=FIELD_MAX_AGE))
             if use_matcher
             else None
         )
@@ -79,6 +108,14 @@ class GridSlam:
         self.last_score = float("nan")
         self._last_scan_stamp = -math.inf
         self._odom = PoseHistory(HISTORY)
+        self.update_travel, self.update_turn, self.update_period = update_travel, update_turn, update_period
+        self.relocalise = relocalise_when_lost
+        self.lost = False  # tracking has lost the robot: nothing is fused until it is found again
+        self.misfits = 0
+        self.times_lost = 0
+        self.last_relocalisation: Relocalisation | None = None
+        self._next_relocalise = -math.inf
+        self._last_fused: tuple[float, Pose2] | None = None  # (stamp, odometry pose) of the last fused scan
 
     # ----------------------------------------------------------------- inputs
     def update(self, odom: Odometry, scan: Scan | None) -> bool:
@@ -87,20 +124,47 @@ class GridSlam:
         fused = False
         if scan is not None and scan.stamp > self._last_scan_stamp:
             self._last_scan_stamp = scan.stamp
-            self._fuse(scan, self._odom.at(scan.stamp))
-            fused = True
+            at = self._odom.at(scan.stamp)
+            if self._due(scan.stamp, at):
+                self._fuse(scan, at)
+                self._last_fused = (scan.stamp, at)
+                fused = True
         self.pose = self.map_to_odom.compose(odom.pose)
         return fused
 
+    def _due(self, stamp: float, odom_pose: Pose2) -> bool:
+        """Whether a scan taken at ``odom_pose`` is worth matching and fusing (see UPDATE_*)."""
+        if self._last_fused is None or self.scans_fused < WARMUP_SCANS:
+            return True
+        t0, p0 = self._last_fused
+        d = p0.between(odom_pose)
+        return (math.hypot(d.x, d.y) >= self.update_travel or abs(d.theta) >= self.update_turn
+                or stamp - t0 >= self.update_period or stamp < t0)
+
     # ------------------------------------------------------------------ core
     def _fuse(self, scan: Scan, odom_pose: Pose2) -> None:
+        if int(scan.valid().sum()) < MIN_RETURNS:
+            return  # a dropout: nothing to match, and its no-returns are no evidence of free space
         predicted = self.map_to_odom.compose(odom_pose)
         corrected = predicted
         if self.matcher is not None and self.scans_fused >= WARMUP_SCANS:
             points = scan.points()
             max_range = scan.range_max - MATCH_RANGE_MARGIN if self.match_range is None else self.match_range
+            if self.lost:
+                self._relocalise(scan.stamp, points, odom_pose, max_range)
+                return
             result = self.matcher.match(self.grid, points, predicted, max_range)
             self.last_score = result.score
+            if self.relocalise and result.known_points >= MISFIT_POINTS and result.known_score < MISFIT_SCORE:
+                # The scan lands on mapped ground but fits nowhere near the prediction: the robot is not where
+                # it thinks. Fusing it would draw the room at the wrong place; after LOST_AFTER such scans, look
+                # for the robot in the whole map instead.
+                self.misfits += 1
+                if self.misfits >= LOST_AFTER:
+                    self.lost = True
+                    self.times_lost += 1
+                return
+            self.misfits = 0
             jump = predicted.between(result.pose)
             plausible = (
                 math.hypot(jump.x, jump.y) <= self.max_correction[0]
@@ -114,6 +178,29 @@ class GridSlam:
         self.scan_pose = corrected
         self.grid.integrate(scan, corrected)
         self.scans_fused += 1
+
+    def _relocalise(self, stamp: float, points: np.ndarray, odom_pose: Pose2, max_range: float) -> None:
+        """While lost, look for the scan in the whole map every RELOCALISE_PERIOD; fuse nothing until found."""
+        if stamp < self._next_relocalise:
+            return
+        self._next_relocalise = stamp + RELOCALISE_PERIOD
+        found = relocalise(self.grid, points, max_range)
+        self.last_relocalisation = found
+        if found.pose is not None:
+            self.map_to_odom = found.pose.compose(odom_pose.inverse())
+            self.lost = False
+            self.misfits = 0
+
+    def adopt(self, grid: OccupancyGrid) -> None:
+        """Carry on with ``grid`` (a saved map): scans are matched against it from the first one."""
+        self.grid = grid
+        self.scans_fused = max(self.scans_fused, WARMUP_SCANS)
+
+    def set_pose(self, pose: Pose2, odom_pose: Pose2) -> None:
+        """The robot is known to stand at ``pose`` in map (docked, or restarted on a saved map): track from there."""
+        self.map_to_odom = pose.compose(odom_pose.inverse())
+        self.pose = pose
+        self.lost, self.misfits = False, 0
 
     # ------------------------------------------------------------ utilities
     def trajectory_point(self) -> np.ndarray:

@@ -88,6 +88,7 @@ CLOSURE_MIN_GAP = 60  # keyframes (≈ 15 m or 20 turns) before a keyframe may c
 CLOSURE_EVERY = 3  # keyframes between closure attempts: as accurate as every one on the loop world's recorded
 # 30-min runs (3.5 ± 0.5 cm mean per tag either way) at 1/7 of the iSAM2 update time (median 0.27 vs 1.8 ms)
 ODOM_HISTORY = 5.0  # [s] odometry kept to place an image's sightings at its stamp
+CLOSURE_MIN_POINTS = 30  # returns both scans need for a lidar closure to be tried
 
 
 def X(i: int) -> int:
@@ -337,6 +338,8 @@ class LandmarkSlam:
         old = self.keyframes[j] if j is not None else None
         if j is None or old is None or old.scan is None:
             return
+        if min(int(old.scan.valid().sum()), int(kf.scan.valid().sum())) < CLOSURE_MIN_POINTS:
+            return  # a scan blanked by a lidar dropout has nothing to match
         t0 = time.perf_counter()
         if j not in self._references:
             self._references[j] = scan_closure.reference(old.scan_offset.transform_points(old.scan.points()))

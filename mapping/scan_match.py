@@ -56,15 +56,26 @@ GN_ANCHOR_XY = 0.05  # [m] std-dev of the pull towards the correlative optimum i
 GN_ANCHOR_THETA = math.radians(2.0)  # [rad]
 MIN_SCORE = 0.25  # mean field value the best pose must reach to be trusted
 MIN_POINTS = 30  # fewer scan end points than this: no match
+FIELD_MARGIN = 1.0  # [m] a reusable field is computed this much wider than one match needs
 
 
 @dataclass(frozen=True)
 class MatchResult:
-    """The matched pose of ``base_link`` in ``map``, its mean field score in [0, 1], and whether to trust it."""
+    """The matched pose of ``base_link`` in ``map``, its mean field score in [0, 1], and whether to trust it.
+
+    ``known`` is the share of the scan's end points that land on cells the
+    grid has observed, and ``known_score`` their mean field score: a scan of
+    new ground lands on unknown cells (nothing to match, nothing wrong),
+    while one that lands on observed cells far from any mapped wall does not
+    fit the map (a wrong pose — a kidnapped robot — or a changed world).
+    """
 
     pose: Pose2
     score: float
     ok: bool
+    known: float = 0.0
+    known_score: float = 0.0
+    known_points: int = 0
 
 
 class ScanMatcher(Protocol):
@@ -170,6 +181,7 @@ class CorrelativeMatcher:
         refine: bool = False,
         prior_xy: float = PRIOR_XY,
         prior_theta: float = PRIOR_THETA,
+        field_max_age: int = 0,
         candidates: int = 1,
     ) -> None:
         self.window_xy = window_xy
@@ -181,6 +193,8 @@ class CorrelativeMatcher:
         self.sigma = sigma
         self.min_score = min_score
         self.refine = refine
+        self.field_max_age = field_max_age
+        self._cache: tuple[int, int, tuple[float, float], float, LikelihoodField] | None = None
 
     def match(self, grid: OccupancyGrid, points: np.ndarray, prior: Pose2, max_range: float = 5.0) -> MatchResult:
         """Best pose of the scan ``points`` (M, 2) [m, base_link] in ``grid`` near ``prior`` [map].
@@ -195,7 +209,7 @@ class CorrelativeMatcher:
         if len(pts) < MIN_POINTS:
             return MatchResult(prior, 0.0, False)
         reach = min(float(np.max(np.hypot(pts[:, 0], pts[:, 1]))), max_range)
-        field = likelihood_field(grid, (prior.x, prior.y), reach + self.window_xy + 4 * self.sigma, self.sigma)
+        field = self._field(grid, prior, reach + self.window_xy + 4 * self.sigma)
         return self.match_field(field, pts, prior)
 
     def match_field(self, field: LikelihoodField, points: np.ndarray, prior: Pose2) -> MatchResult:
@@ -208,7 +222,27 @@ class CorrelativeMatcher:
         if self.refine:
             best = self._gauss_newton(field, pts, best, prior)
         score = float(_score(field, pts, best))
-        return MatchResult(best, score, score >= self.min_score)
+        known, known_score = _known_fit(field, pts, best)
+        return MatchResult(best, score, score >= self.min_score, known, known_score, int(round(known * len(pts))))
+
+    def _field(self, grid: OccupancyGrid, prior: Pose2, half: float) -> LikelihoodField:
+        """The likelihood field around ``prior`` (its max-pooled levels kept with it), reused while fresh enough.
+
+        With ``field_max_age`` > 0 a field is computed over a crop ``FIELD_MARGIN`` wider than needed and
+        reused for the next matches while the grid has changed at most that many times (each fused scan
+        changes it once) and the needed crop still lies inside it: the field is the bulk of a match's cost,
+        and a few scans more or less of map do not move a tracking match.
+        """
+        c = self._cache
+        if (self.field_max_age > 0 and c is not None and c[0] == id(grid)
+                and 0 <= grid.version - c[1] <= self.field_max_age
+                and abs(prior.x - c[2][0]) + half <= c[3] and abs(prior.y - c[2][1]) + half <= c[3]):
+            return c[4]
+        margin = FIELD_MARGIN if self.field_max_age > 0 else 0.0
+        field = likelihood_field(grid, (prior.x, prior.y), half + margin, self.sigma)
+        if self.field_max_age > 0:
+            self._cache = (id(grid), grid.version, (prior.x, prior.y), half + margin, field)
+        return field
 
     # ------------------------------------------------------------ correlative
     def _correlative(self, field: LikelihoodField, pts: np.ndarray, prior: Pose2) -> Pose2:
@@ -373,6 +407,16 @@ def _known(field: LikelihoodField, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     out = np.zeros(len(x))
     out[ok] = field.known[row[ok], col[ok]]
     return out
+
+
+def _known_fit(field: LikelihoodField, pts: np.ndarray, pose: Pose2) -> tuple[float, float]:
+    """(share of points on observed cells, their mean field value) with the scan placed at ``pose``."""
+    wpts = pose.transform_points(pts)
+    k = _known(field, wpts[:, 0], wpts[:, 1]) > 0
+    if not k.any():
+        return 0.0, 0.0
+    m, _, _ = _bilinear(field, wpts[k, 0], wpts[k, 1])
+    return float(k.mean()), float(m.mean())
 
 
 def _score(field: LikelihoodField, pts: np.ndarray, pose: Pose2) -> float:

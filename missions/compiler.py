@@ -11,6 +11,19 @@ parameter (``Wait: 5``). A string value ``$name`` is replaced by the
 parameter ``name`` of the enclosing subtree or of the mission (``$$`` for a
 literal dollar).
 
+Blackboard ports (:mod:`homing.behaviours.ports`): a parameter written
+``"{key}"`` is read from the blackboard each time the node starts. The
+compiler resolves the key: ``{/a/b}`` absolute, ``{@k}`` the root's ``/k``,
+``{=}`` the parameter's own name, and a bare ``{k}`` is ``/k`` at the top of
+the mission; inside a subtree it is what the caller gave the subtree's
+parameter ``k`` (``Sub: {k: "{target}"}`` remaps it to the caller's
+``target``, a plain value fixes it), else the subtree instance's own entry
+``/<instance>/k`` (BT.CPP's isolated subtree blackboards). A parameter that
+names a key (``goal_key``, ``key``) takes the key itself, with or without
+braces, and resolves it the same way. ``blackboard:`` entries are written
+by the runner before the first tick, as an application sets BT.CPP's
+blackboard (Nav2's navigator writes ``goal``).
+
 Errors are collected, never raised one by one (:class:`~homing.missions.loader.Problems`):
 unknown node or parameter (with "did you mean"), wrong type or unit,
 missing required parameter or child, unknown subtree, service or include,
@@ -24,9 +37,11 @@ from __future__ import annotations
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from homing.behaviours import load_nodes
+from homing.behaviours.expression import Const, ScriptSyntaxError
+from homing.behaviours.ports import Port, PortRef, accepts_port, parse_port, placeholder, ported
 from homing.behaviours.registry import NODES, SERVICES, NodeSpec, ServiceSpec
 from homing.missions.loader import Loc, MissionSource, Problems, Subtree, _where, load_source
 from homing.missions.schema import check_value, suggest
@@ -61,6 +76,7 @@ class NodeInfo:
     subtree: str | None = None  # set on the root of a subtree instance
     reads: tuple[str, ...] = ()
     writes: tuple[str, ...] = ()
+    ports: dict[str, str] = field(default_factory=dict)  # parameter → the key it is read from
 
 
 @dataclass
@@ -72,6 +88,7 @@ class CompiledMission:
     info: dict[uuid.UUID, NodeInfo]
     services: list[tuple[ServiceSpec, dict[str, Any]]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    blackboard: dict[str, Any] = field(default_factory=dict)  # initial entries the runner writes, by absolute key
 
     @property
     def name(self) -> str:
@@ -103,6 +120,7 @@ class _Scope:
     names: dict[str, Loc] = field(default_factory=dict)
     build: bool = True
     context: str = ""
+    namespace: str = "/"  # where a bare {key} lives: "/" at the top, "/<instance>/" in a subtree instance
 
 
 class Compiler:
@@ -112,10 +130,12 @@ class Compiler:
         self.source = source
         self.problems = problems
         self.info: dict[uuid.UUID, NodeInfo] = {}
-        self.reads: list[tuple[str, Path, Loc, str]] = []
+        self.reads: list[tuple[str, Path, Loc, str, str]] = []  # key, file, place, node, subtree context
         self.writes: set[str] = set(ALWAYS_WRITTEN)
         self.used_subtrees: set[str] = set()
         self.display_names: dict[str, int] = {}
+        self.namespaces: dict[str, int] = {}
+        self.blackboard: dict[str, Any] = {}
         self.unknown_service = False
 
     def error(self, scope: _Scope, loc: Loc, message: str) -> None:
@@ -128,6 +148,7 @@ class Compiler:
             if name in NODES:
                 self.problems.add(sub.file, sub.loc, f"subtree '{name}' has the name of a registered node ({NODES[name].kind})")
         services = self.services()
+        self.initial_entries()
         root = None
         if src.tree is not None:
             scope = _Scope(src.path, dict(src.params))
@@ -164,15 +185,43 @@ class Compiler:
                 out.append((spec, params))
         return out
 
+    def initial_entries(self) -> None:
+        """The mission's ``blackboard:`` entries: keys resolved, ``$params`` substituted, counted as written."""
+        src = self.source
+        scope = _Scope(src.path, dict(src.params))
+        for key, value in src.blackboard.items():
+            loc = src.blackboard_locs.get(key, (1, 1))
+            ref = parse_port(key) or (PortRef(key) if isinstance(key, str) and key.strip() else None)
+            resolved = self.resolve_port(ref, scope, "") if ref is not None else None
+            if not isinstance(resolved, Port):
+                self.error(scope, loc, f"blackboard: '{key}' is not a blackboard key")
+                continue
+            value = self.substitute(value, scope, loc)
+            if value is UNBOUND:
+                continue
+            self.blackboard[resolved.key] = value
+            self.writes.add(resolved.key)
+
+    def resolve_port(self, ref: PortRef, scope: _Scope, param: str) -> Any:
+        """What ``{ref}`` stands for in ``scope``: a :class:`Port`, a subtree parameter's fixed value, or UNBOUND."""
+        text = param if ref.text == "=" else ref.text
+        if text.startswith("@"):
+            return Port("/" + text[1:].lstrip("/"))
+        if text.startswith("/"):
+            return Port(text)
+        if scope.chain and text in scope.values:
+            return scope.values[text]
+        return Port(scope.namespace + text)
+
     def check_keys(self, services: list[tuple[ServiceSpec, dict[str, Any]]]) -> None:
         if self.unknown_service:
             return  # the unknown service may well write what is missing: fix that first
-        for key, file, loc, node in self.reads:
+        for key, file, loc, node, context in self.reads:
             if key in self.writes:
                 continue
             writers = sorted(s for s, spec in SERVICES.items() if key in spec.writes)
             hint = f"; the service '{writers[0]}' writes it" if writers else ""
-            self.problems.add(file, loc, f"{node} reads '{key}' but nothing writes it (no node, service or the runner){hint}")
+            self.problems.add(file, loc, f"{node} reads '{key}' but nothing writes it (no node, service or the runner){hint}{context}")
 
     # -- one node -------------------------------------------------------------------
     def node(self, raw: Any, container: Any, key: Any, scope: _Scope) -> Behaviour | None:
@@ -237,6 +286,9 @@ class Compiler:
         children: dict[str, Any] = {}
         ok = params is not None
         for slot in slots:
+            if slot not in body and slot in spec.optional:
+                children[slot] = None
+                continue
             if slot not in body:
                 self.error(scope, loc, f"{spec.name} needs '{slot}:'" + (" (a list of nodes)" if slot == "children" else " (a node)"))
                 ok = False
@@ -254,21 +306,54 @@ class Compiler:
                 child = self.node(body[slot], body, slot, scope)
                 ok = ok and child is not None
                 children[slot] = child
+        extra: dict[str, Any] = {}
+        ports: dict[str, Port] = {}
+        reads: tuple[str, ...] = ()
+        writes: tuple[str, ...] = ()
         if params is not None:
-            reads, writes = spec.keys(params)
+            ports = {k: v for k, v in params.items() if isinstance(v, Port)}
+            plain = {k: v for k, v in params.items() if not isinstance(v, Port)}
+            reads, writes = spec.keys(plain)
+            reads = (*reads, *(p.key for p in ports.values()))
+            hook = getattr(spec.factory, "compile_keys", None)
+            if hook is not None and not any(v is UNBOUND for v in plain.values()) and not ports:
+                try:
+                    extra, more_reads, more_writes = hook(plain, lambda text: self._script_key(text, scope))
+                except ScriptSyntaxError as err:
+                    self.error(scope, loc, f"{spec.name}: {err}")
+                    return None
+                reads, writes = (*reads, *more_reads), (*writes, *more_writes)
             self.writes.update(writes)
-            self.reads.extend((k, scope.file, loc, f"{name} ({spec.name})") for k in reads)
+            self.reads.extend((k, scope.file, loc, f"{name} ({spec.name})", scope.context) for k in reads)
         if not ok or not scope.build or params is None:
             return None
         if any(v is UNBOUND for v in params.values()):
             return None
+        declared = {p.name: p for p in spec.params}
+        values = {k: (placeholder(declared[k]) if isinstance(v, Port) else v) for k, v in params.items()}
+        factory = ported(cast(type, spec.factory)) if ports else spec.factory
         try:
-            behaviour = spec.factory(name=self.display(name), **params, **children)
+            behaviour = factory(name=self.display(name), **values, **extra, **children)
         except Exception as err:  # a constructor's complaint about a value is the user's mistake
             self.error(scope, loc, f"{spec.name}: {err}")
             return None
-        self.info[behaviour.id] = NodeInfo(spec.kind, spec.name, params, scope.file, loc, None, *spec.keys(params))
+        for key in ports:
+            if not accepts_port(behaviour, key):
+                self.error(scope, _where(body, key), f"{spec.name}: '{key}' is fixed when the tree is built and cannot be read from the blackboard")
+                return None
+        if ports:
+            cast(Any, behaviour).attach_ports({k: (p, declared[k]) for k, p in ports.items()}, check_value)
+        self.info[behaviour.id] = NodeInfo(spec.kind, spec.name, params, scope.file, loc, None, tuple(reads), tuple(writes),
+                                           {k: p.key for k, p in ports.items()})  # fmt: skip
         return behaviour
+
+    def _script_key(self, text: str, scope: _Scope) -> Any:
+        """A script's name → its absolute key, or a Const for a subtree parameter fixed to a value."""
+        inner = text[1:-1].strip() if text.startswith("{") else text
+        resolved = self.resolve_port(PortRef(inner), scope, "")
+        if isinstance(resolved, Port):
+            return resolved.key
+        return Const(resolved)
 
     def params_for(
         self, owner: str, declared: tuple[Any, ...], raw: dict[str, Any], container: Any, loc: Loc,
@@ -276,6 +361,7 @@ class Compiler:
     ) -> dict[str, Any] | None:  # fmt: skip
         """Check parameters against their declarations; None if any is wrong."""
         table = {p.name: p for p in declared}
+        key_params = _key_params(owner)
         out: dict[str, Any] = {}
         ok = True
         for key, value in raw.items():
@@ -287,9 +373,24 @@ class Compiler:
                 self.error(scope, where, f"unknown parameter '{key}' of {owner}{suggest(str(key), known)} (parameters: {listing})")
                 ok = False
                 continue
-            value = self.substitute(value, scope, _where(container, key) if isinstance(container, LocatedDict) else loc)
+            vloc = _where(container, key) if isinstance(container, LocatedDict) else loc
+            value = self.substitute(value, scope, vloc)
+            ref = parse_port(value)
+            if ref is None and key in key_params and isinstance(value, str) and value.strip():
+                ref = PortRef(value.strip())  # a key parameter names its key with or without braces
+            if ref is not None:
+                value = self.resolve_port(ref, scope, str(key))
             if value is UNBOUND:
                 out[key] = UNBOUND
+                continue
+            if isinstance(value, Port):
+                if key in key_params:
+                    out[key] = value.key
+                elif kind == "service":
+                    self.error(scope, vloc, f"{owner}: a service's '{key}' is fixed at start and cannot be read from the blackboard")
+                    ok = False
+                else:
+                    out[key] = value
                 continue
             try:
                 out[key] = check_value(param, value)
@@ -341,18 +442,25 @@ class Compiler:
                 self.error(scope, _where(body, key, value=False), f"unknown parameter '{key}' of subtree '{name}'{suggest(str(key), sub.params)} (parameters: {', '.join(sub.params) or 'none'})")
                 ok = False
                 continue
-            values[key] = self.substitute(value, scope, _where(body, key))
+            value = self.substitute(value, scope, _where(body, key))
+            ref = parse_port(value)
+            values[key] = self.resolve_port(ref, scope, str(key)) if ref is not None else value  # in the caller's scope
+        namespace = f"{scope.namespace}{self.instance(scope.namespace + str(instance))}/"
         for key, default in sub.params.items():
             if key not in values:
+                ref = parse_port(default)
                 if default is None:
                     self.error(scope, loc, f"subtree '{name}' is missing the required parameter '{key}'")
                     values[key] = UNBOUND
                     ok = False
+                elif ref is not None:  # an entry of the subtree's own unless the caller remaps it
+                    values[key] = self.resolve_port(ref, _Scope(sub.file, {}, namespace=namespace), str(key))
                 else:
                     values[key] = default
         inner = _Scope(
             sub.file, values, (*scope.chain, name), {}, scope.build and ok,
             scope.context or f" (in subtree '{name}' used at {scope.file.name}:{loc[0]}:{loc[1]})",
+            namespace,
         )
         root = self.node(sub.tree, sub.tree_container, "tree", inner)
         if root is not None:
@@ -364,11 +472,26 @@ class Compiler:
                 root.name = self.display(str(instance))
         return root if ok else None
 
+    def instance(self, path: str) -> str:
+        """A unique name for a subtree instance's own blackboard entries: ``Navigate``, then ``Navigate#2``."""
+        n = self.namespaces.get(path, 0) + 1
+        self.namespaces[path] = n
+        base = path.rsplit("/", 1)[-1]
+        return base if n == 1 else f"{base}#{n}"
+
     def display(self, name: str) -> str:
         """A unique name for logs and the view: the second 'Wait' is 'Wait#2'."""
         n = self.display_names.get(name, 0) + 1
         self.display_names[name] = n
         return name if n == 1 else f"{name}#{n}"
+
+
+def _key_params(owner: str) -> set[str]:
+    """The parameters of node ``owner`` whose value is a blackboard key (``$name`` in its reads or writes)."""
+    spec = NODES.get(owner)
+    if spec is None:
+        return set()
+    return {k[1:] for k in (*spec.reads, *spec.writes) if k.startswith("$")}
 
 
 def _what(value: Any) -> str:
@@ -396,4 +519,4 @@ def compile_mission(path: str | Path, overrides: dict[str, Any] | None = None) -
         root, services = None, []
     problems.raise_if_any()
     assert root is not None
-    return CompiledMission(source, root, compiler.info, services, warnings)
+    return CompiledMission(source, root, compiler.info, services, warnings, compiler.blackboard)

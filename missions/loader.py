@@ -18,7 +18,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from homing.missions.schema import DEFAULT_RATE, DEFAULT_SERVICES, SUBTREE_KEYS, TOP_KEYS, suggest
+from homing.missions.schema import (
+    DEFAULT_RATE,
+    DEFAULT_SERVICES,
+    MAX_RATE,
+    MIN_RATE,
+    SUBTREE_KEYS,
+    TOP_KEYS,
+    suggest,
+)
 
 from homing import yamlfile
 from homing.errors import UserError, UserErrors
@@ -98,6 +106,8 @@ class MissionSource:
     tree_container: Any = None
     view_keys: list[str] = field(default_factory=list)
     files: list[Path] = field(default_factory=list)
+    blackboard: dict[Any, Any] = field(default_factory=dict)  # initial entries, keys as written
+    blackboard_locs: dict[Any, Loc] = field(default_factory=dict)
 
 
 def _where(container: Any, key: Any, *, value: bool = True) -> Loc:
@@ -266,8 +276,8 @@ def _top_level(doc: LocatedDict, path: Path, source: MissionSource, problems: Pr
     source.doc = str(doc.get("doc", "") or "")
     if "rate" in doc:
         rate = doc["rate"]
-        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not rate > 0:
-            problems.add(path, _where(doc, "rate"), f"rate: needs a positive number [Hz], not {rate!r}")
+        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not MIN_RATE <= rate <= MAX_RATE:
+            problems.add(path, _where(doc, "rate"), f"rate: needs a number of Hz in {MIN_RATE:g} … {MAX_RATE:g}, not {rate!r}")
         else:
             source.rate = float(rate)
     source.services = _services(doc, path, problems)
@@ -277,6 +287,13 @@ def _top_level(doc: LocatedDict, path: Path, source: MissionSource, problems: Pr
         problems.add(path, doc.loc, "the mission has no 'tree:' (its root node)")
     else:
         source.tree, source.tree_container = doc["tree"], doc
+    if "blackboard" in doc and doc["blackboard"] is not None:
+        table = doc["blackboard"]
+        if not isinstance(table, LocatedDict):
+            problems.add(path, _where(doc, "blackboard"), "blackboard: needs a mapping of key: initial value")
+        else:
+            source.blackboard = dict(table)
+            source.blackboard_locs = {k: _where(table, k, value=False) for k in table}
     view = doc.get("view")
     if view is not None:
         keys = view.get("blackboard") if isinstance(view, LocatedDict) else None
@@ -306,6 +323,8 @@ def _walk_includes(doc: LocatedDict, path: Path, source: MissionSource, problems
 def _overrides(overrides: dict[str, Any], source: MissionSource, problems: Problems) -> None:
     for name, value in overrides.items():
         if name not in source.params:
-            problems.add(source.path, (1, 1), f"--set {name}: the mission has no parameter '{name}'{suggest(name, source.params)}")
+            listing = ", ".join(f"{k}={v}" for k, v in source.params.items()) or "none"
+            problems.add(source.path, (1, 1), f"--set {name}: the mission has no parameter '{name}'"
+                         f"{suggest(name, source.params)} (its parameters: {listing})")
             continue
         source.params[name] = value

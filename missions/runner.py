@@ -33,7 +33,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import py_trees
-from homing.behaviours.keys import EXPLORE_GOAL_KEY, IDLE_KEY, NAVIGATOR_KEY, TAGS_KEY
+from homing.behaviours.keys import (
+    CYCLES_KEY,
+    DOCK_KEY,
+    EXPLORE_GOAL_KEY,
+    IDLE_KEY,
+    NAVIGATOR_KEY,
+    SAVE_KEY,
+    TAGS_KEY,
+)
 from homing.behaviours.registry import Service
 from homing.missions.compiler import CompiledMission
 from homing.robot import Observation, RobotAdapter, Twist2
@@ -104,13 +112,18 @@ class Runner:
     changes: int = 0
     recorder: Any = None  # a homing.logs.runlog.Recorder (or None: nothing is logged)
     truth: Callable[[], Any] | None = None  # the simulator's true pose, for the log only
+    run_dir: Any = None  # a homing.lifecycle.rundir.RunDir: a snapshot is saved there when a leaf asks (SaveRun)
+    resume: Any = None  # a homing.lifecycle.rundir.Snapshot to start from (--resume)
+    meta: dict[str, Any] = field(default_factory=dict)  # what the run is (mission, world, seed), kept in snapshots
+    snapshots: int = 0
 
     def __post_init__(self) -> None:
         # py_trees keeps one blackboard per process: a run starts from an empty one, not from the last run's values.
         py_trees.blackboard.Blackboard.storage.clear()
         self.tree = py_trees.trees.BehaviourTree(self.mission.root)
         self.bb = py_trees.blackboard.Client(name="runner")
-        for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state", IDLE_KEY):
+        for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state", IDLE_KEY, SAVE_KEY, CYCLES_KEY,
+                    DOCK_KEY):
             self.bb.register_key(key=key, access=Access.WRITE)
         for key in (TAGS_KEY, NAVIGATOR_KEY, EXPLORE_GOAL_KEY):  # logged with --record
             if key not in self.bb.remappings:
@@ -118,7 +131,8 @@ class Runner:
         for key in self.mission.source.view_keys:
             if key not in self.bb.remappings:
                 self.bb.register_key(key=key, access=Access.READ)
-        self._status: dict[Any, Status] = {n.id: n.status for n in self.mission.root.iterate()}
+        self._nodes = list(self.mission.root.iterate())
+        self._status: dict[Any, Status] = {n.id: n.status for n in self._nodes}
         self._names = {n.id: n.name for n in self.mission.root.iterate()}
         self.tree.visitors.append(_ChangeVisitor(self))
         self._setup_done = False
@@ -134,7 +148,11 @@ class Runner:
         return 1.0 / (self.rate or self.mission.rate)
 
     def setup(self) -> None:
-        """Build and set up the services, then the tree (``setup(robot=..., seed=...)``)."""
+        """Build and set up the services, then the tree (``setup(robot=..., seed=...)``); restore ``resume``."""
+        if self.resume is not None:  # what the mission counted and where the dock is, before anyone reads them
+            self.bb.set(CYCLES_KEY, int(self.resume.cycles), overwrite=True)
+            if self.resume.dock is not None:
+                self.bb.set(DOCK_KEY, self.resume.dock, overwrite=True)
         for spec, params in self.mission.services:
             service = spec.factory(**params)
             client = py_trees.blackboard.Client(name=f"service:{spec.name}")
@@ -144,6 +162,16 @@ class Runner:
                 client.register_key(key=key, access=Access.READ)
             service.setup(self.robot, client)
             self.services.append(service)
+        initial = py_trees.blackboard.Client(name="mission:blackboard")
+        for key, value in self.mission.blackboard.items():  # the mission's blackboard: entries
+            initial.register_key(key=key, access=Access.WRITE)
+            initial.set(key, value, overwrite=True)
+        if self.resume is not None:
+            obs = self.robot.observe()
+            for service in self.services:
+                restore = getattr(service, "restore", None)
+                if restore is not None:
+                    restore(self.resume, obs)
         self.tree.setup(robot=self.robot, seed=self.seed)
         self.start = self.now = float(self.robot.clock.now())
         self.wall_start = time.monotonic()
@@ -167,8 +195,11 @@ class Runner:
             rec.record_tags(obs.stamp, self.read(TAGS_KEY) or [])
         self.bb.set("/cmd_vel", None, overwrite=True)
         self.bb.set(IDLE_KEY, None, overwrite=True)
+        self.bb.set(SAVE_KEY, False, overwrite=True)
         self.tree.tick()
         self._sweep()
+        if self.run_dir is not None and self.read(SAVE_KEY):
+            self.save_snapshot()
         cmd = self.bb.get("/cmd_vel")
         self.last_command = self.robot.command(cmd.v, cmd.omega) if isinstance(cmd, Twist2) else self.robot.command(0.0, 0.0)
         if rec is not None:
@@ -213,6 +244,8 @@ class Runner:
         """Zero command, halt the tree (running leaves cancel), record the halts, shut services down."""
         self.last_command = self.robot.command(0.0, 0.0)
         self.now = float(self.robot.clock.now())
+        if self.recorder is not None:
+            self.recorder.record_command(self.now, self.last_command)  # the log shows the robot stopped
         if self.mission.root.status == Status.RUNNING:
             self.mission.root.stop(Status.INVALID)
         self._sweep()
@@ -221,6 +254,22 @@ class Runner:
         self.tree.shutdown()
         if self.on_tick is not None:
             self.on_tick(self)
+
+    def save_snapshot(self) -> Any:
+        """Save what the robot keeps (services' state, counters, the dock, the simulator's) to ``run_dir``."""
+        from homing.lifecycle.rundir import Snapshot
+
+        snap = Snapshot(time=self.now, cycles=int(self.read(CYCLES_KEY) or 0), dock=self.read(DOCK_KEY),
+                        meta=dict(self.meta))
+        for service in self.services:
+            keep = getattr(service, "snapshot", None)
+            if keep is not None:
+                keep(snap)
+        state = getattr(self.robot, "state", None)
+        snap.sim = state() if callable(state) else None
+        folder = self.run_dir.save(snap)
+        self.snapshots += 1
+        return folder
 
     def next_step(self) -> float:
         """Seconds of adapter time to the next tick: one period, or up to the time a leaf said it may idle to."""
@@ -251,8 +300,10 @@ class Runner:
                 self.on_change(StatusChange(self.now, node.name, old, node.status))
 
     def _sweep(self) -> None:
-        for node in self.mission.root.iterate():
-            self.record(node)
+        statuses = self._status
+        for node in self._nodes:  # a flat list: walking py_trees' recursive iterate() every tick costs more
+            if node.status is not statuses.get(node.id, Status.INVALID):
+                self.record(node)
 
     def read(self, key: str) -> Any:
         """A blackboard entry for the view (None when unset)."""

@@ -18,7 +18,7 @@ from __future__ import annotations
 import difflib
 import math
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from homing.behaviours.registry import NODES, REQUIRED, SERVICES, NodeSpec, Param
@@ -32,6 +32,7 @@ TOP_KEYS: dict[str, str] = {
     "params": "mission parameters with defaults, used in the tree as $name",
     "include": "other mission files whose subtrees this one uses (paths relative to this file)",
     "subtrees": "named trees with parameters, used like nodes",
+    "blackboard": "initial blackboard entries the runner writes before the first tick: {key: value}",
     "tree": "the root node",
     "view": "live-view options: {blackboard: [keys to show]}",
 }
@@ -41,6 +42,8 @@ SUBTREE_KEYS: dict[str, str] = {
     "tree": "the subtree's root node",
 }
 DEFAULT_RATE = 10.0  # [Hz]
+MIN_RATE = 1.0  # [Hz] slower, and the robot drives blind on one command for over a second
+MAX_RATE = 1000.0  # [Hz] faster than any sensor or the base's 50 Hz control loop can use
 DEFAULT_SERVICES = ("grid_slam", "navigation")
 
 # Units a parameter may declare, and the spellings accepted for each, as factors to it.
@@ -100,7 +103,32 @@ def _types(param: Param) -> tuple[type, ...]:
 
 
 def check_value(param: Param, value: Any) -> Any:
-    """The value converted to the parameter's type and unit; raises ValueError with a one-line reason."""
+    """The value converted to the parameter's type and unit, within its bounds; raises ValueError with a one-line reason."""
+    out = _convert(param, value)
+    if isinstance(out, (int, float)) and not isinstance(out, bool):
+        _check_number(param, out, value)
+    return out
+
+
+def _check_number(param: Param, number: float, given: Any) -> None:
+    """Finite (NaN only where the default is NaN) and within the declared bounds, or ValueError."""
+    unit = f" {param.unit}" if param.unit and param.unit != "%" else param.unit
+    shown = given if isinstance(given, str) else f"{number:g}{unit}"
+    if math.isnan(number):
+        if isinstance(param.default, float) and math.isnan(param.default):
+            return
+        raise ValueError(f"'{param.name}' needs a number, not NaN")
+    if math.isinf(number):
+        raise ValueError(f"'{param.name}' needs a finite number, not {shown}")
+    if param.above is not None and not number > param.above:
+        raise ValueError(f"'{param.name}' must be above {param.above:g}{unit}, not {shown}")
+    if param.minimum is not None and number < param.minimum:
+        raise ValueError(f"'{param.name}' must be at least {param.minimum:g}{unit}, not {shown}")
+    if param.maximum is not None and number > param.maximum:
+        raise ValueError(f"'{param.name}' must be at most {param.maximum:g}{unit}, not {shown}")
+
+
+def _convert(param: Param, value: Any) -> Any:
     types = _types(param)
     if value is None:
         if param.default is None:
@@ -154,22 +182,40 @@ def describe_param(param: Param) -> str:
     unit = f" [{param.unit}]" if param.unit else ""
     default = "required" if param.default is REQUIRED else f"= {param.default!r}"
     choices = f" one of {', '.join(param.choices)}" if param.choices else ""
-    return f"{param.name}: {types}{unit} {default}{choices}" + (f" — {param.doc}" if param.doc else "")
+    limits = [f"> {param.above:g}" if param.above is not None else "",
+              f"≥ {param.minimum:g}" if param.minimum is not None else "",
+              f"≤ {param.maximum:g}" if param.maximum is not None else ""]
+    bounds = f" ({', '.join(x for x in limits if x)})" if any(limits) else ""
+    return f"{param.name}: {types}{unit} {default}{bounds}{choices}" + (f" — {param.doc}" if param.doc else "")
 
 
 # --------------------------------------------------------------------------- JSON Schema
 
 
+def _bounds(param: Param) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    if param.minimum is not None:
+        out["minimum"] = param.minimum
+    if param.maximum is not None:
+        out["maximum"] = param.maximum
+    if param.above is not None:
+        out["exclusiveMinimum"] = param.above
+    return out
+
+
 def _param_schema(param: Param) -> dict[str, Any]:
     alts: list[dict[str, Any]] = []
+    non_negative = (param.minimum is not None and param.minimum >= 0) or (param.above is not None and param.above >= 0)
     for t in _types(param):
         if t is float:
-            alts.append({"type": "number"})
+            alts.append({"type": "number", **_bounds(param)})
             if param.unit:
                 units = "|".join(re.escape(u) for u in UNITS.get(param.unit, {param.unit: 1}))
-                alts.append({"type": "string", "pattern": rf"^\s*[-+]?[0-9.]+(e[-+]?[0-9]+)?\s*({units})\s*$"})
+                sign = "[+]?" if non_negative else "[-+]?"
+                number = r"([0-9]+\.?[0-9]*|\.[0-9]+)([eE][-+]?[0-9]+)?"
+                alts.append({"type": "string", "pattern": rf"^\s*{sign}{number}\s*({units})\s*$"})
         elif t is int:
-            alts.append({"type": "integer"})
+            alts.append({"type": "integer", **_bounds(param)})
         elif t is bool:
             alts.append({"type": "boolean"})
         elif t is str:
@@ -177,6 +223,9 @@ def _param_schema(param: Param) -> dict[str, Any]:
         elif t is list:
             alts.append({"type": "array"})
     alts.append({"type": "string", "pattern": r"^\$[A-Za-z_][A-Za-z0-9_]*$"})  # $name substitution
+    alts.append({"type": "string", "pattern": r"^\{\s*[@/A-Za-z_=][A-Za-z0-9_./@-]*\s*\}$"})  # "{key}": a port
+    alts.append({"type": "object", "minProperties": 1, "maxProperties": 1,
+                 "additionalProperties": {"type": "null"}})  # {key} unquoted: YAML's one-entry mapping
     out: dict[str, Any] = {"anyOf": alts}
     doc = param.doc + (f" [{param.unit}]" if param.unit else "")
     if doc:
@@ -186,25 +235,30 @@ def _param_schema(param: Param) -> dict[str, Any]:
     return out
 
 
-def _node_schema(spec: NodeSpec) -> dict[str, Any]:
+def _node_schema(spec: NodeSpec, ref: str) -> dict[str, Any]:
+    """``{Kind: body}`` for one registered node; its children are ``$ref: ref``."""
     props: dict[str, Any] = {"name": {"type": "string", "description": "the node's name in the view and logs"}}
     for p in spec.params:
         props[p.name] = _param_schema(p)
     required = [p.name for p in spec.params if p.required]
     for slot in spec.child_slots:
         if slot == "children":
-            props[slot] = {"type": "array", "items": {"$ref": "#/$defs/node"}}
+            props[slot] = {"type": "array", "minItems": 1, "items": {"$ref": ref}}
         else:
-            props[slot] = {"$ref": "#/$defs/node"}
-        required.append(slot)
+            props[slot] = {"$ref": ref}
+        if slot not in spec.optional:
+            required.append(slot)
     body: dict[str, Any] = {"type": "object", "properties": props, "additionalProperties": False}
     if required:
         body["required"] = required
     forms: list[dict[str, Any]] = [body]
     if spec.child_slots == ("children",):
-        forms.append({"type": "array", "items": {"$ref": "#/$defs/node"}})
+        forms.append({"type": "array", "minItems": 1, "items": {"$ref": ref}})
     if not required:
         forms.append({"type": "null"})
+    needed = [p for p in spec.params if p.required]
+    if not spec.child_slots and len(needed) == 1:
+        forms.append(_param_schema(needed[0]))  # a leaf's only required parameter given alone: Wait: 5 s
     return {
         "type": "object",
         "properties": {spec.name: {"anyOf": forms, "description": spec.doc}},
@@ -213,19 +267,69 @@ def _node_schema(spec: NodeSpec) -> dict[str, Any]:
     }
 
 
-def json_schema() -> dict[str, Any]:
-    """A JSON Schema of mission files for the nodes registered now (call ``load_nodes()`` first)."""
-    node_forms: list[dict[str, Any]] = [_node_schema(NODES[n]) for n in sorted(NODES)]
+def _subtree_use(name: str, params: Iterable[str]) -> dict[str, Any]:
+    """``{Name: {its parameters}}``: a subtree used like a node."""
+    props: dict[str, Any] = {"name": {"type": "string"}, **{p: {} for p in params}}
+    body = {"anyOf": [{"type": "object", "properties": props, "additionalProperties": False}, {"type": "null"}],
+            "description": f"subtree '{name}'"}
+    return {"type": "object", "properties": {name: body}, "required": [name], "additionalProperties": False}
+
+
+def _node_forms(ref: str) -> list[dict[str, Any]]:
+    """Every registered node's form, children referring to ``ref``, and a bare name for those that need nothing."""
+    forms = [_node_schema(NODES[n], ref) for n in sorted(NODES)]
     bare = sorted(n for n, s in NODES.items() if not any(p.required for p in s.params) and not s.child_slots)
-    node_forms.append({"type": "string", "enum": bare, "description": "a node without parameters"})
-    # A subtree is used like a node under its own name: any other single-key mapping.
-    node_forms.append({"type": "object", "minProperties": 1, "maxProperties": 1,
-                       "not": {"anyOf": [{"required": [n]} for n in sorted(NODES)]},
-                       "description": "a subtree, by name, with its parameters"})  # fmt: skip
-    service = {"anyOf": [{"type": "string", "enum": sorted(SERVICES)}, {"type": "object", "maxProperties": 1}]}
-    if not SERVICES:
-        service = {"anyOf": [{"type": "string"}, {"type": "object", "maxProperties": 1}]}
-    return {
+    forms.append({"type": "string", "enum": bare, "description": "a node without parameters"})
+    return forms
+
+
+def _service_forms() -> list[dict[str, Any]]:
+    forms: list[dict[str, Any]] = [{"type": "string", "enum": sorted(SERVICES)}]
+    for name in sorted(SERVICES):
+        props = {p.name: _param_schema(p) for p in SERVICES[name].params}
+        body = {"anyOf": [{"type": "object", "properties": props, "additionalProperties": False}, {"type": "null"}],
+                "description": SERVICES[name].doc}
+        forms.append({"type": "object", "properties": {name: body}, "required": [name], "additionalProperties": False})
+    return forms
+
+
+def json_schema(subtrees: Mapping[str, Iterable[str]] | None = None) -> dict[str, Any]:
+    """A JSON Schema of mission files for the nodes registered now (call ``load_nodes()`` first).
+
+    With ``subtrees`` (name → parameter names, e.g. one mission's and its
+    includes'), a node is a registered node or one of those subtrees, and
+    anything else is an unknown node — exactly as ``homing check`` decides.
+    Without, the schema serves any mission: a file with no ``subtrees:``
+    and no ``include:`` gets the same exact check; in one that has them, a
+    single-key mapping that names no registered node passes as a subtree
+    (the schema cannot see another file's subtrees).
+    """
+    subtree = {"type": "object", "minProperties": 1, "maxProperties": 1,
+               "not": {"anyOf": [{"required": [n]} for n in sorted(NODES)]},
+               "description": "a subtree, by name, with its parameters"}  # fmt: skip
+    defs: dict[str, Any] = {"node": {"anyOf": _node_forms("#/$defs/node")}}
+    if subtrees is not None:
+        defs["node"]["anyOf"] += [_subtree_use(name, params) for name, params in sorted(subtrees.items())]
+        loose = "#/$defs/node"
+    else:
+        defs["node_or_subtree"] = {"anyOf": [*_node_forms("#/$defs/node_or_subtree"), subtree]}
+        loose = "#/$defs/node_or_subtree"
+
+    def trees(ref: str) -> dict[str, Any]:
+        return {
+            "tree": {"$ref": ref},
+            "subtrees": {
+                "type": "object",
+                "additionalProperties": {
+                    "type": "object",
+                    "properties": {"doc": {"type": "string"}, "params": {"type": "object"}, "tree": {"$ref": ref}},
+                    "required": ["tree"],
+                    "additionalProperties": False,
+                },
+            },
+        }
+
+    schema: dict[str, Any] = {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "$id": "https://homing.invalid/mission.schema.json",
         "title": "homing mission",
@@ -233,23 +337,26 @@ def json_schema() -> dict[str, Any]:
         "properties": {
             "mission": {"type": "string", "description": TOP_KEYS["mission"]},
             "doc": {"type": "string"},
-            "rate": {"type": "number", "exclusiveMinimum": 0, "description": TOP_KEYS["rate"]},
-            "services": {"type": "array", "items": service, "description": TOP_KEYS["services"]},
-            "params": {"type": "object", "description": TOP_KEYS["params"]},
+            "rate": {"type": "number", "minimum": MIN_RATE, "maximum": MAX_RATE, "description": TOP_KEYS["rate"]},
+            "services": {"anyOf": [{"type": "array", "items": {"anyOf": _service_forms()}}, {"type": "null"}],
+                         "description": TOP_KEYS["services"]},
+            "params": {"anyOf": [{"type": "object", "propertyNames": {"pattern": r"^[A-Za-z_][A-Za-z0-9_]*$"}},
+                                 {"type": "null"}], "description": TOP_KEYS["params"]},
             "include": {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}]},
-            "subtrees": {
-                "type": "object",
-                "additionalProperties": {
-                    "type": "object",
-                    "properties": {"doc": {"type": "string"}, "params": {"type": "object"},
-                                   "tree": {"$ref": "#/$defs/node"}},  # fmt: skip
-                    "required": ["tree"],
-                    "additionalProperties": False,
-                },
-            },
-            "tree": {"$ref": "#/$defs/node"},
-            "view": {"type": "object", "properties": {"blackboard": {"type": "array", "items": {"type": "string"}}}},
+            "tree": {"description": TOP_KEYS["tree"]},
+            "subtrees": {"description": "named trees with parameters, used like nodes"},
+            "blackboard": {"type": "object", "description": TOP_KEYS["blackboard"]},
+            "view": {"type": "object", "properties": {"blackboard": {"type": "array", "items": {"type": "string"}}},
+                     "additionalProperties": False},
         },
+        "required": ["tree"],
         "additionalProperties": False,
-        "$defs": {"node": {"anyOf": node_forms}},
+        "$defs": defs,
     }
+    if subtrees is not None:
+        schema["allOf"] = [{"properties": trees(loose)}]
+    else:
+        has_subtrees = {"anyOf": [{"required": ["subtrees"]}, {"required": ["include"]}]}
+        schema["allOf"] = [{"if": has_subtrees, "then": {"properties": trees(loose)},
+                            "else": {"properties": trees("#/$defs/node")}}]
+    return schema

@@ -1,22 +1,45 @@
 """The terminal view of a running mission (rich ``Live``), its plain-text log, and the static tree.
 
-The live view fits an 80 × 24 terminal: one header line (mission, adapter
-time, real-time factor, battery, lifecycle state ``/mission/state``), the
-tree with each node's status as colour and glyph and the running path in
-bold, then the current leaf's feedback message and the selected blackboard
-entries. When the tree has more lines than the screen, branches off the
-running path are folded first (``▸ name (+n)``), deepest first.
+The live view fits an 80 × 24 terminal (and uses a bigger one):
+
+- a header line: mission, adapter time, real-time factor, tick;
+- a small map (:class:`homing.missions.minimap.MiniMap`: the grid in
+  braille, the robot, its planned path, its goal, the frontiers) beside the
+  facts (:mod:`homing.missions.facts`): lifecycle state and dock cycles,
+  both batteries with their go-home and undock levels, the pose, the goal,
+  the mapped area and its growth over time;
+- the tree with each node's status as colour and glyph and the running path
+  in bold — when it has more lines than the screen, branches off the running
+  path are folded first (``▸ name (+n)``), deepest first;
+- the current leaf's feedback message and the mission's chosen blackboard
+  entries.
+
+When the run stops, the tree is halted (every node INVALID), but the final
+frame still shows what was running when it stopped, marked as halted.
+Redraws happen at most ``REFRESH_HZ`` times a real second, whatever the
+simulation's pace; the map and the frontiers are cached on the grid's version.
 
 ``--no-view`` or a stdout that is not a terminal gets :class:`PlainLog`
-instead: one timestamped line per status change, as the runner reports them.
+instead: one timestamped line per status change, as the runner reports them,
+and every ``FACTS_PERIOD`` of adapter time a line of the same facts.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, TextIO
 
+from homing.missions.facts import (
+    AreaHistory,
+    Facts,
+    battery_bar,
+    fact_line,
+    pose_text,
+    read_facts,
+    register_keys,
+)
+from homing.missions.minimap import MiniMap
 from py_trees.behaviour import Behaviour
 from py_trees.common import Status
 from rich.console import Console, Group
@@ -42,20 +65,29 @@ RTF_WINDOW = 0.5  # [s] wall time over which the header's real-time factor is me
 REFRESH_HZ = 8.0  # [Hz] redraws of the live view (real time)
 HEADER_LINES = 1
 FOOTER_MIN = 2  # feedback line and a rule
+MAP_MIN_LINES, MAP_MAX_LINES = 8, 18  # [lines] the map's height, by the terminal's
+MAP_MIN_WIDTH = 18  # [characters]
+FACTS_MIN_WIDTH = 36  # [characters] beside the map
+FACTS_MAX_WIDTH = 48  # [characters] (battery bars wider than this read no better)
+FACTS_PERIOD = 30.0  # [s] adapter time between fact lines without the view
+SUMMARY_LINES = 2  # printed by 'homing run' under the final frame
 
 
-def label(node: Behaviour, mission: CompiledMission, *, status: bool = True, params: bool = False) -> Text:
-    """One node's line: status glyph, kind mark, name (and its spec and parameters if asked)."""
+def label(node: Behaviour, mission: CompiledMission, *, status: bool = True, params: bool = False,
+          shown: Status | None = None) -> Text:
+    """One node's line: status glyph (``shown`` instead of its own if given), kind mark, name (and its spec and
+    parameters if asked)."""
     info = mission.info.get(node.id)
     text = Text()
+    current = shown if shown is not None else node.status
     if status:
-        glyph, colour = STATUS_STYLE[node.status]
+        glyph, colour = STATUS_STYLE[current]
         text.append(f"{glyph} ", style=colour)
     spec = info.spec if info else type(node).__name__
     mark = KIND_MARK.get(spec, "◇" if info and info.kind == "decorator" else "")
     if mark:
         text.append(f"{mark} ", style="cyan")
-    style = "bold" if node.status == Status.RUNNING and status else ""
+    style = "bold" if current == Status.RUNNING and status else ""
     if info and info.subtree:
         text.append("⧉ ", style="magenta")
     text.append(node.name, style=style)
@@ -70,6 +102,8 @@ def label(node: Behaviour, mission: CompiledMission, *, status: bool = True, par
 
 
 def _short(value: Any, width: int = 24) -> str:
+    if all(hasattr(value, a) for a in ("x", "y", "theta")):  # a Pose2: centimetres and whole degrees
+        return pose_text(value)[:width]
     s = f"{value:g}" if isinstance(value, float) else repr(value) if isinstance(value, str) else str(value)
     return s if len(s) <= width else s[: width - 1] + "…"
 
@@ -92,15 +126,20 @@ def _preorder(node: Behaviour, depth: int = 0) -> Iterator[tuple[Behaviour, int]
         yield from _preorder(child, depth + 1)
 
 
-def fold(root: Behaviour, budget: int) -> set[Any]:
+def fold(root: Behaviour, budget: int, statuses: dict[Any, Status] | None = None) -> set[Any]:
     """Ids of the nodes whose children are shown, so that at most ``budget`` lines are drawn.
 
     Running nodes are unfolded first, then finished ones, then idle ones,
-    shallow before deep, each only if its children still fit.
+    shallow before deep, each only if its children still fit. ``statuses``
+    (node id → status) stands in for the nodes' own (a halted tree's last).
     """
     nodes = list(_preorder(root))
     rank = {Status.RUNNING: 0, Status.SUCCESS: 1, Status.FAILURE: 1, Status.INVALID: 2}
-    order = sorted((n for n in nodes if n[0].children), key=lambda nd: (rank[nd[0].status], nd[1]))
+
+    def status(node: Behaviour) -> Status:
+        return statuses.get(node.id, node.status) if statuses is not None else node.status
+
+    order = sorted((n for n in nodes if n[0].children), key=lambda nd: (rank[status(nd[0])], nd[1]))
     shown, lines = {root.id}, 1
     opened: set[Any] = set()
     for _ in range(2):
@@ -114,15 +153,15 @@ def fold(root: Behaviour, budget: int) -> set[Any]:
     return opened
 
 
-def tree_lines(mission: CompiledMission, budget: int) -> list[Text]:
-    """The tree as at most ``budget`` indented lines with statuses; the running path in bold."""
-    opened = fold(mission.root, budget)
+def tree_lines(mission: CompiledMission, budget: int, statuses: dict[Any, Status] | None = None) -> list[Text]:
+    """The tree as at most ``budget`` indented lines with statuses (``statuses`` overriding); running path in bold."""
+    opened = fold(mission.root, budget, statuses)
     out: list[Text] = []
 
     def walk(node: Behaviour, prefix: str) -> None:
         line = Text()
         line.append(prefix, style="grey50")
-        line.append_text(label(node, mission))
+        line.append_text(label(node, mission, shown=statuses.get(node.id) if statuses is not None else None))
         if node.children and node.id not in opened:
             line.append(f" ▸(+{sum(1 for _ in node.iterate()) - 1})", style="grey50")
         out.append(line)
@@ -145,17 +184,39 @@ class LiveView:
         self.last_wall = 0.0
         self.last_sim = 0.0
         self.rtf = 0.0
+        self.minimap = MiniMap()
+        self.area = AreaHistory()
+        self._statuses: dict[Any, Status] = {}  # every node's status at the last redraw of a running tree
+        self._running: list[Any] = []  # ids on the running path at the last tick of a running tree
+        self._tip: tuple[str, str] | None = None  # (name, feedback) of the running leaf then
+        self.gone = False  # the terminal went away: draw no more
 
     def __enter__(self) -> LiveView:
         self.live.__enter__()
         return self
 
     def __exit__(self, *exc: Any) -> None:
-        self.live.__exit__(*exc)
+        try:
+            self.live.__exit__(*exc)
+        except OSError:  # the terminal is gone (a hang-up): nothing left to restore
+            self.gone = True
+
+    def attach(self, runner: Runner) -> Callable[[Runner], None]:
+        """Let ``runner``'s blackboard client read what the view shows; the callback to call after each tick."""
+        register_keys(runner)
+        return self.update
 
     def update(self, runner: Runner, *, force: bool = False) -> None:
+        running = runner.mission.root.status == Status.RUNNING
+        if running:  # cheap, every tick: the running path (depth of the tree), for the final frame
+            tip = runner.tree.tip()
+            self._running, node = [], tip
+            while node is not None:
+                self._running.append(node.id)
+                node = node.parent
+            self._tip = (tip.name, tip.feedback_message) if tip is not None else None
         wall = time.monotonic()
-        if not force and wall - self.last_draw < 1.0 / REFRESH_HZ and runner.mission.root.status == Status.RUNNING:
+        if not force and wall - self.last_draw < 1.0 / REFRESH_HZ and running:
             return
         # Measure the pace over at least RTF_WINDOW of wall time: a forced redraw right
         # after the previous one (the final frame) would otherwise read as ×0.
@@ -165,26 +226,43 @@ class LiveView:
         elif self.last_draw <= 0:
             self.last_wall, self.last_sim = wall, runner.now
         self.last_draw = wall
-        self.live.update(self.render(runner), refresh=True)
+        if running:
+            self._statuses = {n.id: n.status for n in runner.mission.root.iterate()}
+        if self.gone:
+            return
+        try:
+            self.live.update(self.render(runner), refresh=True)
+        except OSError:  # the terminal hung up (SIGHUP follows): keep running, stop drawing
+            self.gone = True
+
+    def halted_statuses(self, runner: Runner) -> dict[Any, Status] | None:
+        """The statuses to draw for a tree halted by the stop (None while running or when it finished itself)."""
+        if runner.mission.root.status != Status.INVALID or not self._running:
+            return None
+        shown = dict(self._statuses)
+        shown.update({i: Status.RUNNING for i in self._running})
+        return shown
 
     def render(self, runner: Runner) -> Group:
         width, height = self.console.size
+        if runner.mission.root.status != Status.RUNNING:
+            height -= SUMMARY_LINES  # the final frame leaves room for the run's summary below it
         keys = self.mission.source.view_keys
-        footer = FOOTER_MIN + len(keys)
-        budget = max(3, height - HEADER_LINES - footer - 1)
-        parts: list[Text] = [self.header(runner, width)]
-        parts.extend(tree_lines(self.mission, budget))
-        parts.append(Text("─" * min(width, 80), style="grey35"))
-        tip = runner.tree.tip()
-        feedback = Text()
-        feedback.append("▶ ", style="yellow")
-        if tip is not None:
-            feedback.append(tip.name, style="bold")
-            feedback.append(f": {tip.feedback_message}" if tip.feedback_message else "")
+        facts = read_facts(runner)
+        area = self.area.update(facts.t, facts.grid)
+        if facts.grid is not None:
+            map_h = max(MAP_MIN_LINES, min(MAP_MAX_LINES, (height - 12) // 2))
+            map_w = max(MAP_MIN_WIDTH, min(width - FACTS_MIN_WIDTH - 1, 2 * map_h + map_h // 2))
         else:
-            feedback.append(f"root {runner.mission.root.status.value}", style="bold")
-        feedback.truncate(width, overflow="ellipsis")
-        parts.append(feedback)
+            map_h = map_w = 0  # no map in this mission: the facts alone
+        panel = self.panel(facts, area, map_w, map_h, min(FACTS_MAX_WIDTH, width - map_w - 1))
+        halted = self.halted_statuses(runner)
+        footer = FOOTER_MIN + len(keys)
+        budget = max(3, height - HEADER_LINES - len(panel) - footer - 1)
+        parts: list[Text] = [self.header(runner, width), *panel]
+        parts.extend(tree_lines(self.mission, budget, halted))
+        parts.append(Text("─" * min(width, 80), style="grey35"))
+        parts.append(self.feedback(runner, halted is not None, width))
         for key in keys:
             line = Text()
             line.append(f"{key} = ", style="cyan")
@@ -192,16 +270,79 @@ class LiveView:
             parts.append(line)
         return Group(*parts)
 
+    def panel(self, facts: Facts, area: float | None, map_w: int, map_h: int, facts_w: int) -> list[Text]:
+        """The map (``map_w`` × ``map_h``) and the facts beside it, as ``map_h`` lines."""
+        right = self.fact_lines(facts, area, facts_w)
+        if not map_w:
+            return right
+        path = facts.path if facts.path is not None and len(facts.path) else None
+        chart = self.minimap.render(facts.grid, map_w, map_h, facts.pose, path, facts.goal)
+        lines = [Text(no_wrap=True, overflow="ellipsis") for _ in range(map_h)]
+        for i in range(map_h):
+            lines[i].append_text(chart[i])
+            lines[i].append(" ")
+            if i < len(right):
+                lines[i].append_text(right[i])
+            lines[i].truncate(map_w + 1 + facts_w, overflow="ellipsis")
+        return lines
+
+    def fact_lines(self, f: Facts, area: float | None, width: int) -> list[Text]:
+        out: list[Text] = []
+        head = Text()
+        head.append("state ", style="grey62")
+        head.append(f.state or "–", style="bold magenta")
+        if f.cycles is not None:
+            head.append("  cycles ", style="grey62")
+            head.append(str(f.cycles), style="bold")
+        out.append(head)
+        out.extend(battery_bar(b, width) for b in f.batteries)
+        if f.pose is not None:
+            out.append(Text("pose ", style="grey62").append(pose_text(f.pose), style=""))
+        if f.goal is not None:
+            togo = f" · {f.remaining:.1f} m to go" if f.remaining is not None else ""
+            out.append(Text("goal ", style="grey62").append(f"({f.goal.x:.2f}, {f.goal.y:.2f}){togo}", style="green"))
+        if area is not None:
+            rate = self.area.rate()
+            grow = f" · {rate:+.1f} m²/min" if rate is not None else ""
+            out.append(Text("mapped ", style="grey62").append(f"{area:.1f} m²{grow}"))
+            spark = self.area.sparkline(max(4, width - 2))
+            if spark:
+                out.append(Text(spark, style="cyan"))
+            scale = self.minimap.scale()
+            res = getattr(f.grid, "resolution", None)
+            key = Text("frontiers ", style="grey62").append(str(self.minimap.frontier_count), style="magenta")
+            if scale is not None and res is not None:
+                key.append(f" · dot {scale * res:.2f} m", style="grey50")
+            out.append(key)
+        return out
+
+    def feedback(self, runner: Runner, halted: bool, width: int) -> Text:
+        text = Text()
+        if halted and self._tip is not None:
+            name, message = self._tip
+            text.append("■ ", style="red")
+            text.append(f"halted: {name}", style="bold")
+            text.append(f" was running: {message}" if message else " was running")
+        else:
+            tip = runner.tree.tip()
+            text.append("▶ ", style="yellow")
+            if tip is not None:
+                text.append(tip.name, style="bold")
+                text.append(f": {tip.feedback_message}" if tip.feedback_message else "")
+            else:
+                text.append(f"root {runner.mission.root.status.value}", style="bold")
+        text.truncate(width, overflow="ellipsis")
+        return text
+
     def header(self, runner: Runner, width: int) -> Text:
-        obs = runner.observation
-        battery = f"{obs.battery.percent:.0f} %{' ⚡' if obs.battery.charging else ''}" if obs is not None else "–"
-        state = runner.read("/mission/state") or "–"
         t = runner.now - runner.start
         text = Text()
         text.append(f"{self.mission.name} ", style="bold")
-        text.append(f"t {_clock(t)}  ×{self.rtf:.1f}  battery {battery}  state ")
-        text.append(str(state), style="bold magenta")
+        text.append(f"t {_clock(t)}  ×{self.rtf:.1f}")
         text.append(f"  tick {runner.ticks}", style="grey50")
+        status = runner.mission.root.status
+        if status != Status.RUNNING:
+            text.append(f"  stopped ({'halted' if status == Status.INVALID else status.value})", style="bold red")
         text.truncate(width, overflow="ellipsis")
         return text
 
@@ -213,10 +354,35 @@ def _clock(seconds: float) -> str:
 
 
 class PlainLog:
-    """Timestamped status-change lines for a pipe or ``--no-view``: ``[  12.30 s] Wait: RUNNING -> SUCCESS``."""
+    """Timestamped status-change lines for a pipe or ``--no-view``: ``[  12.30 s] Wait: RUNNING -> SUCCESS``.
+
+    Attached to a runner (:meth:`attach`), it also prints the live view's facts as one line every
+    ``FACTS_PERIOD`` of adapter time (:func:`homing.missions.facts.fact_line`), and at the end.
+    """
 
     def __init__(self, stream: TextIO):
         self.stream = stream
+        self.area = AreaHistory()
+        self.minimap = MiniMap()
+        self._next = 0.0
 
     def __call__(self, change: StatusChange) -> None:
         self.stream.write(change.line() + "\n")
+
+    def attach(self, runner: Runner) -> Callable[[Runner], None]:
+        """Let ``runner``'s client read the facts; the callback to call after each tick (a fact line when due)."""
+        register_keys(runner)
+        return self.tick
+
+    def tick(self, runner: Runner) -> None:
+        t = runner.now - runner.start
+        if t < self._next and runner.mission.root.status == Status.RUNNING:
+            return
+        self._next = t + FACTS_PERIOD
+        facts = read_facts(runner)
+        area = self.area.update(t, facts.grid)
+        frontiers = None
+        if facts.grid is not None:
+            self.minimap.frontiers(facts.grid)
+            frontiers = self.minimap.frontier_count
+        self.stream.write(fact_line(facts, area, frontiers) + "\n")

@@ -56,6 +56,9 @@ INFLATION_RADIUS = 0.55  # [m] Nav2 default
 COST_SCALING_FACTOR = 5.0  # [1/m] how fast the inflation cost decays past the inscribed radius
 OBSTACLE_MAX_RANGE = 2.5  # [m] scan returns farther than this do not mark (Nav2 default)
 RAYTRACE_MAX_RANGE = 3.0  # [m] rays clear the obstacle layer up to this far (Nav2 default)
+FILL_SHIFT = 4  # fractional bits of the clearing polygon's vertices (1/16 cell)
+CLEARANCE_MARGIN = 0.45  # [m] beyond the inscribed radius, ``clearance`` stays exact at least this far
+                         # (the controllers slow down within 0.3 m of the footprint)
 
 
 @dataclass(frozen=True)
@@ -107,7 +110,9 @@ class Costmap:
     """Static + obstacle + inflation layers over one (H, W) grid in the ``map`` frame.
 
     ``cost`` is (H, W) uint8 with Nav2's values; ``clearance`` is (H, W) float32,
-    the distance [m] from each cell centre to the nearest lethal cell centre.
+    the distance [m] from each cell centre to the nearest lethal cell centre
+    (exact up to the inflation radius; farther cells may after a scan update
+    keep a value that is only a lower bound beyond it, see :meth:`_inflate`).
     Cell (r, c) has its centre at ``origin + ((c + ½)·res, (r + ½)·res)``.
     Call :meth:`update_static` with every new grid and :meth:`update_scan`
     with every new scan; both recompute the inflation.
@@ -274,24 +279,36 @@ class Costmap:
         sensor = pose_in_map.compose(scan.laser_pose)
         ang = scan.angles[ok] + sensor.theta
         rng = scan.ranges[ok].astype(float)
-        # Clearing: every cell a ray crosses before its end point is free of obstacles.
-        reach = np.minimum(rng, self.params.raytrace_max_range) - self.resolution
-        step = 0.5 * self.resolution
-        n = max(1, int(math.ceil(float(reach.max(initial=0.0)) / step)))
-        t = np.arange(n) * step
-        along = np.where(t[None, :] < reach[:, None], t[None, :], np.nan)
-        xs = sensor.x + along * np.cos(ang)[:, None]
-        ys = sensor.y + along * np.sin(ang)[:, None]
-        pts = np.column_stack([xs.ravel(), ys.ravel()])
-        pts = pts[np.isfinite(pts[:, 0])]
-        rc = self.world_to_cell(pts)
-        rc = rc[self.inside(rc)]
-        self.obstacles[rc[:, 0], rc[:, 1]] = False
+        # Everything this scan can change lies within its reach of the sensor: a window, not the whole map.
+        box = self._window(sensor.x, sensor.y, max(self.params.raytrace_max_range, self.params.obstacle_max_range))
+        r0, r1, c0, c1 = box
+        before = self.obstacles[r0:r1, c0:c1].copy()
+        # Clearing: every cell a ray crosses before its end point is free of obstacles. The rays sweep a
+        # star-shaped polygon round the sensor (a ray with no return closes it back to the sensor), so the
+        # cleared cells are those whose centres the polygon covers: one raster fill instead of ray sampling.
+        reach = np.where(ok, np.minimum(scan.ranges.astype(float), self.params.raytrace_max_range) - self.resolution,
+                         0.0)
+        reach = np.maximum(reach, 0.0)
+        all_ang = scan.angles + sensor.theta
+        px = (sensor.x + reach * np.cos(all_ang) - self.origin[0]) / self.resolution - 0.5 - c0
+        py = (sensor.y + reach * np.sin(all_ang) - self.origin[1]) / self.resolution - 0.5 - r0
+        poly = np.round(np.column_stack([px, py]) * (1 << FILL_SHIFT)).astype(np.int32)
+        cleared = np.zeros((r1 - r0, c1 - c0), dtype=np.uint8)
+        cv2.fillPoly(cleared, [poly], 1, lineType=cv2.LINE_8, shift=FILL_SHIFT)
+        self.obstacles[r0:r1, c0:c1][cleared.astype(bool)] = False
         # Marking: end points within the marking range.
         near = rng <= self.params.obstacle_max_range
         ends = np.column_stack([sensor.x + rng * np.cos(ang), sensor.y + rng * np.sin(ang)])[near]
         self._mark(ends)
-        self._inflate()
+        if not np.array_equal(before, self.obstacles[r0:r1, c0:c1]):
+            self._inflate(box)
+
+    def _window(self, x: float, y: float, reach: float) -> tuple[int, int, int, int]:
+        """(r0, r1, c0, c1): the cells within ``reach`` [m] of (x, y) [m], clipped to the costmap."""
+        h, w = self.shape
+        n = int(math.ceil(reach / self.resolution)) + 1
+        rc = self.world_to_cell(np.array([x, y]))[0]
+        return (max(int(rc[0]) - n, 0), min(int(rc[0]) + n + 1, h), max(int(rc[1]) - n, 0), min(int(rc[1]) + n + 1, w))
 
     def clear(self) -> None:
         """Empty the obstacle layer and the bumper marks (Nav2's ClearEntireCostmap); static and keep-out stay."""
@@ -305,9 +322,38 @@ class Costmap:
         rc = rc[self.inside(rc)]
         self.obstacles[rc[:, 0], rc[:, 1]] = True
 
-    def _inflate(self) -> None:
-        """Combine the layers and inflate lethal cells by the footprint and the decay."""
-        lethal = (self.static == LETHAL) | self.obstacles | self._unseen_layer()
+    def _inflate(self, box: tuple[int, int, int, int] | None = None) -> None:
+        """Combine the layers and inflate lethal cells by the footprint and the decay.
+
+        With ``box`` (r0, r1, c0, c1), only the lethal cells in it changed:
+        the cells within ``CLEARANCE_HORIZON`` of it are recomputed, from the
+        layers within twice that, which holds every lethal cell that can be
+        nearer to them than the horizon. Beyond the horizon ``clearance`` is
+        then only known to be at least the horizon (inflation ends before it).
+        """
+        h, w = self.shape
+        if box is None or self.clearance.shape != (h, w):
+            self.clearance, self.cost = self._inflated(0, h, 0, w)
+        else:
+            n = int(math.ceil(self._horizon() / self.resolution)) + 1
+            r0, r1, c0, c1 = box
+            a = (max(r0 - n, 0), min(r1 + n, h), max(c0 - n, 0), min(c1 + n, w))  # cells to update
+            b = (max(a[0] - n, 0), min(a[1] + n, h), max(a[2] - n, 0), min(a[3] + n, w))  # layers they depend on
+            d, cost = self._inflated(*b)
+            inner = (slice(a[0] - b[0], a[1] - b[0]), slice(a[2] - b[2], a[3] - b[2]))
+            self.clearance[a[0]:a[1], a[2]:a[3]] = d[inner]
+            self.cost[a[0]:a[1], a[2]:a[3]] = cost[inner]
+        self.version += 1
+
+    def _horizon(self) -> float:
+        """[m] how far a lethal cell's influence on cost and on the controllers' clearance checks reaches."""
+        return max(self.params.inflation_radius, self.inscribed_radius + CLEARANCE_MARGIN)
+
+    def _inflated(self, r0: int, r1: int, c0: int, c1: int) -> tuple[np.ndarray, np.ndarray]:
+        """(clearance [m] float32, cost uint8) over the cells [r0:r1, c0:c1] from the layers there."""
+        window = (slice(r0, r1), slice(c0, c1))
+        static = self.static[window]
+        lethal = (static == LETHAL) | self.obstacles[window] | self._unseen_layer()[window]
         if lethal.any():
             # cv2's precise L2 transform is the exact Euclidean distance to the nearest zero pixel.
             free = np.where(lethal, 0, 255).astype(np.uint8)
@@ -315,13 +361,10 @@ class Costmap:
             d *= self.resolution
         else:
             d = np.full(lethal.shape, np.inf, dtype=np.float32)
-        self.clearance = d
-        self.cost = inflation_cost(d, self.inscribed_radius, self.params.inflation_radius,
-                                   self.params.cost_scaling_factor)
+        cost = inflation_cost(d, self.inscribed_radius, self.params.inflation_radius, self.params.cost_scaling_factor)
         # Unknown cells stay unknown unless the robot would touch something there.
-        unknown = (self.static == NO_INFORMATION) & (self.cost < INSCRIBED)
-        self.cost[unknown] = NO_INFORMATION
-        self.version += 1
+        cost[(static == NO_INFORMATION) & (cost < INSCRIBED)] = NO_INFORMATION
+        return d, cost
 
 
     def _unseen_layer(self) -> np.ndarray:

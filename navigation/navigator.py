@@ -23,6 +23,12 @@ only; a ``map_to_odom`` correction larger than a few centimetres replans at
 once, so the path follows the map the robot is now placed in. The controller
 checks the last few scans moved to the present by odometry.
 
+Split as Nav2's tree splits it (``ComputePathToPose`` then ``FollowPath``):
+:meth:`Navigator.plan_path` plans once on the current costmap, and
+:meth:`Navigator.follow` drives along a path it is given, without planning
+(:meth:`Navigator.update_path` swaps in a newer one while driving), so the
+tree's own replanning branch decides when to plan.
+
 Frames: goal, path and ``pose_in_map`` in ``map``; progress and the motion of
 a stale scan measured in ``odom``. Time is the observation's stamp (the
 adapter's clock).
@@ -116,6 +122,8 @@ class Navigator:
     ``*_params`` go to their constructors. Not thread-safe; one goal at a time.
     """
 
+    path: np.ndarray | None  # (N, 2) [m] in map: the path being followed
+
     def __init__(self, planner: str = "fmm", controller: str = "rpp",
                  costmap: CostmapParams | None = None,
                  planner_params: dict[str, Any] | None = None,
@@ -161,6 +169,39 @@ class Navigator:
         m = GOAL_MARGIN
         self.costmap.require(goal.x - m, goal.y - m, goal.x + m, goal.y + m)
 
+    def follow(self, path: np.ndarray, heading: float = math.nan, xy_tolerance: float | None = None,
+               yaw_tolerance: float | None = None) -> None:
+        """Drive along ``path`` ((N, 2) [m] in map) to its last point, then turn to ``heading`` (nan: any); never plans."""
+        end = np.asarray(path, dtype=float)[-1]
+        self.set_goal(Pose2(float(end[0]), float(end[1]), 0.0), xy_tolerance, yaw_tolerance)
+        self._follow_yaw_tolerance = self.goal_yaw_tolerance
+        self.update_path(path, heading)
+
+    def update_path(self, path: np.ndarray, heading: float = math.nan) -> None:
+        """Follow ``path`` ((N, 2) [m] in map) from now on, to its last point and ``heading``, in place of the last one."""
+        self.path = np.asarray(path, dtype=float)[:, :2]
+        end = self.path[-1]
+        self.goal = Pose2(float(end[0]), float(end[1]), 0.0 if math.isnan(heading) else float(heading))
+        self.goal_yaw_tolerance = math.inf if math.isnan(heading) else self._follow_yaw_tolerance
+        self.feedback.goal = self.goal
+        self._external = True
+        self._force_replan = False
+
+    def plan_path(self, pose_in_map: Pose2, goal: Pose2) -> np.ndarray:
+        """A path ((N, 2) [m] in map) from ``pose_in_map`` to ``goal`` on the costmap as it is; raises PlanningError."""
+        m = GOAL_MARGIN
+        self.costmap.require(goal.x - m, goal.y - m, goal.x + m, goal.y + m)
+        return self.planner.plan(self.costmap, pose_in_map, goal)
+
+    def path_blocked(self, path: np.ndarray, pose_in_map: Pose2) -> bool:
+        """Whether the costmap now puts an obstacle on ``path`` ((N, 2) [m] in map), past the robot's own spot."""
+        kept = self.path
+        self.path = np.asarray(path, dtype=float)[:, :2]
+        try:
+            return self._path_blocked(pose_in_map)
+        finally:
+            self.path = kept
+
     def set_keepout(self, zones: object) -> None:
         """Keep-out zones in ``map`` (:func:`homing.navigation.layers.parse_keepout` spellings) no path may cross."""
         self.costmap.set_keepout(zones)
@@ -174,7 +215,7 @@ class Navigator:
         self.costmap.release()
 
     def _reset_goal_state(self) -> None:
-        self.path: np.ndarray | None = None
+        self.path = None
         self._plan_time = -math.inf
         self._plan_fail_since: float | None = None
         self._blocked_since: float | None = None
@@ -186,6 +227,8 @@ class Navigator:
         self._force_replan = True
         self._plan_map_to_odom: Pose2 | None = None
         self._backup: BackUp | None = None  # backing off a bump
+        self._external = False  # following a path given by follow(): the caller plans
+        self._follow_yaw_tolerance = self.yaw_tolerance
 
     # -- world model -----------------------------------------------------------------------
     def update_costmap(self, obs: Observation, grid: Any, pose_in_map: Pose2,
@@ -293,8 +336,10 @@ class Navigator:
             jump = self._plan_map_to_odom.between(map_to_odom)
             if math.hypot(jump.x, jump.y) > MAP_JUMP_XY or abs(jump.theta) > MAP_JUMP_YAW:
                 self._force_replan = True
-        # Plan.
-        if self._force_replan or now - self._plan_time >= self.replan_period or self._path_blocked(pose_in_map):
+        # Plan (unless the caller hands the path over, as Nav2's FollowPath is handed one).
+        if self._external:
+            pass
+        elif self._force_replan or now - self._plan_time >= self.replan_period or self._path_blocked(pose_in_map):
             try:
                 self.path = self.planner.plan(self.costmap, pose_in_map, self.goal)
                 self._plan_time, self._plan_fail_since, self._force_replan = now, None, False

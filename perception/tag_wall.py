@@ -141,12 +141,12 @@ class TagPerception:
         self._last_image = -math.inf
         self._history: list[tuple[float, Pose2]] = []
 
-    def measure(self, obs: object) -> list[TagMeasurement]:
-        """Accepted tag measurements of ``obs.image`` if it is new, else []."""
+    def measure(self, obs: object, detect: bool = True) -> list[TagMeasurement]:
+        """Accepted tag measurements of ``obs.image`` if it is new, else []; ``detect=False`` only keeps odometry."""
         stamp, pose = obs.odom.stamp, obs.odom.pose  # type: ignore[attr-defined]
         self._history = [h for h in self._history if h[0] >= stamp - self.HISTORY] + [(stamp, pose)]
         image, scan = obs.image, obs.scan  # type: ignore[attr-defined]
-        if image is None or image.stamp <= self._last_image:
+        if not detect or image is None or image.stamp <= self._last_image:
             return []
         self._last_image = image.stamp
         tags = self.detector.detect(image)  # type: ignore[attr-defined]

@@ -28,6 +28,7 @@ channels, seeded.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from homing.robot.frames import R_BODY_FROM_OPTICAL, homogeneous
@@ -56,6 +57,46 @@ def camera_info(width: int = WIDTH, height: int = HEIGHT) -> CameraInfo:
     f = (height / 2) / math.tan(CAMERA_VFOV / 2)
     return CameraInfo(width, height, f, f, width / 2, (height - 1) / 2,
                       homogeneous(R_BODY_FROM_OPTICAL, np.array(CAMERA_POSE_XYZ)))
+
+
+class RenderedOnDemand(CameraImage):
+    """A frame the simulator renders only when its pixels are first read (``.image``), then keeps.
+
+    A real camera's frames cost nothing to ignore; a rendered one costs
+    15–20 ms, so a frame nobody reads (the tag service skips most of them,
+    the explore mission reads none) is never rendered. The pose, the time and
+    the pixel noise are fixed when the frame is taken, so the pixels are the
+    same whenever (and whether) they are read; the rest of the scene is
+    rendered as it stands when they are read — within the tick, as services
+    read frames right after the step that took them. Pickles as a plain
+    :class:`~homing.robot.types.CameraImage`.
+    """
+
+    _pixels: np.ndarray | None
+    _render: Callable[[], np.ndarray] | None
+
+    def __init__(self, stamp: float, info: CameraInfo, render: Callable[[], np.ndarray]) -> None:
+        object.__setattr__(self, "stamp", stamp)
+        object.__setattr__(self, "info", info)
+        object.__setattr__(self, "_render", render)
+        object.__setattr__(self, "_pixels", None)
+
+    @property  # type: ignore[override]
+    def image(self) -> np.ndarray:
+        if self._pixels is None:
+            assert self._render is not None
+            object.__setattr__(self, "_pixels", self._render())
+            object.__setattr__(self, "_render", None)
+        assert self._pixels is not None
+        return self._pixels
+
+    @property
+    def rendered(self) -> bool:
+        """Whether the pixels have been rendered yet."""
+        return self._pixels is not None
+
+    def __reduce__(self) -> tuple[type, tuple[float, np.ndarray, CameraInfo]]:
+        return (CameraImage, (self.stamp, self.image, self.info))
 
 
 class SimCamera:

@@ -70,8 +70,10 @@ class _Box:
 
     def __init__(self, mask: np.ndarray):
         self.h, self.w = mask.shape
-        self.sat = np.zeros((self.h + 1, self.w + 1), dtype=np.int64)
-        self.sat[1:, 1:] = np.cumsum(np.cumsum(mask.astype(np.int64), axis=0), axis=1)
+        dtype = np.int32 if mask.size < 2**31 else np.int64  # counts up to H·W: half the memory on any real map
+        self.sat = np.zeros((self.h + 1, self.w + 1), dtype=dtype)
+        np.cumsum(mask, axis=0, dtype=dtype, out=self.sat[1:, 1:])
+        np.cumsum(self.sat[1:, 1:], axis=1, out=self.sat[1:, 1:])
 
     def all_true(self, r0: int, r1: int, c0: int, c1: int) -> bool:
         """Whether every cell of rows [r0, r1], cols [c0, c1] (inclusive) is True (False if off-grid)."""
@@ -137,9 +139,13 @@ def place_dock(data: MapData) -> Pose2:
     spots = wall_spots(data, DOCK_WALL_HALF, CLEAR_HALF, CLEAR_DEPTH, region)
     if not spots:
         raise ValueError("no straight wall with ~1.5 m of clear floor in front of it for the dock")
-    rows, cols = np.nonzero(region)
-    centre = _local_to_world(data, np.array([[(cols.mean() + 0.5) * data.resolution,
-                                              (rows.mean() + 0.5) * data.resolution]]))[0]
+    # The component's centroid from its row and column counts (no index arrays over a large map).
+    per_row, per_col = region.sum(axis=1), region.sum(axis=0)
+    total = float(per_row.sum())
+    row_mean = float(per_row @ np.arange(len(per_row))) / total
+    col_mean = float(per_col @ np.arange(len(per_col))) / total
+    centre = _local_to_world(data, np.array([[(col_mean + 0.5) * data.resolution,
+                                              (row_mean + 0.5) * data.resolution]]))[0]
     best = min(spots, key=lambda s: (round(math.hypot(s[0].x - centre[0], s[0].y - centre[1]), 6), s[1], s[2]))
     return best[0]
 

@@ -33,27 +33,33 @@ is for evaluation and tests only: behaviours and services must use
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from homing.robot.frames import wrap_angle
 from homing.robot.turtlebot import LIDAR_RATE, RobotLimits, bumper_sector
 from homing.robot.types import Bumpers, CameraImage, Observation, Odometry, Pose2, Scan, Twist2
 from homing.sim.battery import Battery
-from homing.sim.camera import CAMERA_RATE, HEIGHT, WIDTH, SimCamera
+from homing.sim.camera import CAMERA_RATE, HEIGHT, WIDTH, RenderedOnDemand, SimCamera
 from homing.sim.dock import Dock
+from homing.sim.events import Change, rasterise, safe_to_place
 from homing.sim.faults import Fault
 from homing.sim.lidar import SimLidar
 from homing.sim.odometry import SlipModel, WheelOdometry, arc
 from homing.sim.scene import BUMP_DEPTH, OBSTACLE_SIZE, Scene
 from homing.sim.world import World
 
-PHYSICS_DT = 0.02  # [s] longest sub-step: 14 mm at 0.7 m/s, well under a wall's thickness
+from homing.map_server import MapData
+
+PHYSICS_DT = 0.05  # [s] longest sub-step: 35 mm at 0.7 m/s, under a wall's thickness
 PUSH_ITERATIONS = 4  # collision resolution passes per sub-step
 BUMP_HIT_SPEED = 0.5  # [m/s] a bumper_hit obstacle's approach speed
 BUMP_HIT_BEARING = {"left": math.radians(60.0), "centre": 0.0, "right": math.radians(-60.0)}
 KIDNAP_CLEARANCE = 0.35  # [m] a random kidnap lands at least this far from walls
 IDLE_DT = 1.0  # [s] longest sub-step of an idle step (no command, nothing moving)
-MOVING_FAULTS = ("bumper_hit", "kidnap")  # faults that move something: no idle step across them
+CAMERA_STREAM = 2  # seed stream of the camera's pixel noise (frame by frame)
+MOVING_FAULTS = ("bumper_hit", "kidnap")
+CHANGE_RETRY = 1.0  # [s] a world change held back (it would trap the robot) is tried again this often  # faults that move something: no idle step across them
 
 
 class SimClock:
@@ -79,6 +85,7 @@ class SimRobot:
         seed: int = 0,
         camera: bool = True,
         faults: list[Fault] | tuple[Fault, ...] = (),
+        changes: list[Change] | tuple[Change, ...] = (),
         camera_rate: float = CAMERA_RATE,
         image_size: tuple[int, int] = (WIDTH, HEIGHT),
         physics_dt: float = PHYSICS_DT,
@@ -91,7 +98,7 @@ class SimRobot:
         self.limits = RobotLimits()
         self.physics_dt = physics_dt
         streams = np.random.SeedSequence(self.seed).spawn(4)
-        self._rng_odom, self._rng_lidar, self._rng_camera, self._rng_fault = (
+        self._rng_odom, self._rng_lidar, _, self._rng_fault = (
             np.random.default_rng(s) for s in streams
         )
         self.scene = Scene(world, visuals=camera)
@@ -100,6 +107,9 @@ class SimRobot:
         self.camera_period = 1.0 / camera_rate
         self.dock: Dock = world.dock
         self.faults = tuple(world.faults) + tuple(faults)
+        self.changes = tuple(world.events) + tuple(changes)
+        self._standing: dict[int, Change] = {}  # world changes in the scene now, by index
+        self._next_change_check = -math.inf
         self._fault_started: set[int] = set()
         self._bump_obstacles: dict[int, tuple[float, float, float, float]] = {}
         self._pose = start or world.start
@@ -112,6 +122,7 @@ class SimRobot:
         self._image: CameraImage | None = None
         self._next_scan = 0.0
         self._next_frame = 0.0
+        self._frames = 0  # frames taken (rendered or not): each one's pixel noise is seeded by its number
         self._closed = False
         self._sense()
 
@@ -198,6 +209,8 @@ class SimRobot:
     def _substep(self, h: float, sense: bool = True) -> set[str]:
         t = self.clock.t
         self._apply_faults(t, h)
+        if self.changes:
+            self._apply_changes(t)
         v, w = self._cmd.v, self._cmd.omega
         keep = 1.0 - max((f.amount for f in self.faults if f.name == "wheel_slip" and f.active(t)), default=0.0)
         before = self._pose  # after a kidnap: the gyro feels real turns only
@@ -257,9 +270,17 @@ class SimRobot:
         self._next_frame += self.camera_period
         off = any(f.name == "camera_off" and f.active(at) for f in self.faults)
         if not off and self.camera.visible_tags(self._pose, self.world.tags):
-            self._image = self.camera.render(self._pose, at, self._rng_camera)
+            self._image = self._frame(self._pose, at)
         else:
             self._image = None
+
+    def _frame(self, pose: Pose2, at: float) -> CameraImage:
+        """The frame taken at ``pose`` and ``at`` [s], rendered when first read, with noise of its own seed."""
+        camera = self.camera
+        assert camera is not None
+        self._frames += 1
+        rng = np.random.default_rng([self.seed, CAMERA_STREAM, self._frames])
+        return RenderedOnDemand(at, camera.info, lambda: camera.render(pose, at, rng).image)
 
     def render(self) -> CameraImage:
         """Render a frame now whatever is in view (demos, tests); does not change observations."""
@@ -292,6 +313,55 @@ class SimRobot:
                     self.scene.remove_obstacle(key)
             elif f.name == "bumper_hit":
                 self._bumper_hit(k, f, t, h)
+
+    def _apply_changes(self, t: float) -> None:
+        """World changes due now appear (when safe: not on the robot, not cutting it off its dock) or go."""
+        for k, ch in enumerate(self.changes):
+            if k in self._standing and not ch.present(t):
+                del self._standing[k]
+                self.scene.remove_obstacle(f"change{k}")
+        due = [k for k, ch in enumerate(self.changes) if ch.present(t) and k not in self._standing]
+        if not due or t < self._next_change_check:
+            return
+        self._next_change_check = t + CHANGE_RETRY  # a held-back change is tried again a little later
+        for k in due:
+            ch = self.changes[k]
+            if safe_to_place(self.world.map, list(self._standing.values()), ch, self._pose, self.world.staging_pose(1.0)):
+                self._standing[k] = ch
+                self.scene.add_obstacle(f"change{k}", ch.x, ch.y, ch.yaw, ch.size)
+
+    def state(self) -> dict[str, Any]:
+        """The simulated world's state (JSON-able) for a run directory: time, the robot's truth, batteries, faults.
+
+        Restored by :meth:`restore_state` on a new SimRobot of the same world, the world carries on where it
+        was (the robot's odometry restarts at zero, as a restarted driver's does).
+        """
+        return {"t": self.clock.t, "pose": [self._pose.x, self._pose.y, self._pose.theta],
+                "soc": [self.base_battery.soc, self.computer_battery.soc],
+                "faults_started": sorted(self._fault_started), "frames": self._frames}
+
+    def restore_state(self, state: dict[str, Any]) -> None:
+        """Carry on from :meth:`state` (raises ValueError on a state that does not fit)."""
+        try:
+            t = float(state["t"])
+            pose = Pose2(*(float(v) for v in state["pose"]))
+            base, computer = (float(v) for v in state["soc"])
+            started = {int(k) for k in state.get("faults_started", [])}
+        except (KeyError, TypeError, ValueError) as err:
+            raise ValueError(f"not a simulator state: {err}") from None
+        if not (math.isfinite(t) and t >= 0 and 0 <= base <= 1 and 0 <= computer <= 1):
+            raise ValueError("not a simulator state: time or charge out of range")
+        self.clock.t = t
+        self._pose = pose
+        self.base_battery.soc, self.computer_battery.soc = base, computer
+        self._fault_started = started
+        self._frames = int(state.get("frames", 0))
+        self._next_scan = self._next_frame = t
+        self._sense()
+
+    def truth_map(self) -> MapData:
+        """The floor plan with the world changes standing now (evaluation: map agreement with the world as it is)."""
+        return rasterise(self.world.map, list(self._standing.values()))
 
     def _bumper_hit(self, k: int, f: Fault, t: float, h: float) -> None:
         # The obstacle drives at the robot's position when the fault began, stops 1 cm inside

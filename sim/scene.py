@@ -76,10 +76,11 @@ class Scene:
                           physicsClientId=self.client)
 
     # --- obstacles (faults) ----------------------------------------------------------
-    def add_obstacle(self, key: str, x: float, y: float, yaw: float = 0.0) -> None:
-        """A lidar-visible box (faults); replaces any obstacle under ``key``."""
+    def add_obstacle(self, key: str, x: float, y: float, yaw: float = 0.0,
+                     size: tuple[float, float] = (OBSTACLE_SIZE, OBSTACLE_SIZE)) -> None:
+        """A lidar-visible box of ``size`` (sx, sy) [m] (faults, world changes); replaces any under ``key``."""
         self.remove_obstacle(key)
-        half = [OBSTACLE_SIZE / 2, OBSTACLE_SIZE / 2, OBSTACLE_HEIGHT / 2]
+        half = [size[0] / 2, size[1] / 2, OBSTACLE_HEIGHT / 2]
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=self.client)
         vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=OBSTACLE_RGBA, physicsClientId=self.client)
         self.obstacles[key] = p.createMultiBody(0, col, vis, [x, y, OBSTACLE_HEIGHT / 2], _quat_yaw(yaw),

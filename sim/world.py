@@ -5,6 +5,7 @@ or a bare map_server YAML. A world file (all lengths in metres, angles in
 radians, paths relative to the file)::
 
     name: lab                      # optional, default: the file's stem
+    doc: The thesis's lab …        # optional: one line for 'homing missions'
     map: lab_map.yaml              # map_server YAML (required)
     wall_height: 1.2               # optional, ≥ 1 m (taller than the lidar)
     dock: {x: 0.0, y: -4.9, yaw: 1.5708}   # the dock's back on the wall face, yaw into the room; or "auto"
@@ -16,6 +17,7 @@ radians, paths relative to the file)::
       - {x0: 1.0, y0: 1.0, x1: 2.0, y1: 3.0, slip: 4.0}
     battery: {base: {percent: 100}, computer: {percent: 90}}   # see homing.sim.battery
     faults: [{name: kidnap, at: 120.0, to: [0.0, 0.0, 0.0]}]   # see homing.sim.faults
+    events: [{kind: box, start: 600, end: 4000, x: 3.0, y: 4.0}]   # world changes, see homing.sim.events
 
 A bare map_server YAML becomes a world with the dock placed by
 :func:`homing.sim.placement.place_dock`, the robot started docked and no tags.
@@ -35,6 +37,7 @@ import numpy as np
 from homing.robot.types import Pose2
 from homing.sim.battery import BASE_DEFAULT, COMPUTER_DEFAULT, BatteryParams, params_from_section
 from homing.sim.dock import Dock
+from homing.sim.events import Change, change_from_section
 from homing.sim.faults import Fault, fault_from_section
 from homing.sim.placement import main_component, place_dock, place_tags, reachable_from
 from homing.sim.tags import CELLS, TAG_HEIGHT, TAG_IDS, TAG_SIZE, WALL_OFFSET, Tag
@@ -46,8 +49,10 @@ from homing.section import Section, section_at
 from homing.yamlfile import LocatedDict, load
 
 WORLDS_DIR = Path(__file__).resolve().parent / "worlds"
-_KEYS = ("name", "map", "wall_height", "dock", "dock_tag", "start", "tags", "patches", "battery", "faults")
+_KEYS = ("name", "doc", "map", "wall_height", "dock", "dock_tag", "start", "tags", "patches", "battery", "faults",
+         "events")
 MIN_WALL_HEIGHT = 1.0  # [m] the lidar at 0.5 m must never graze a wall's top
+WALL_REACH = 0.10  # [m] (or 1.5 cells, if more) a dock's back or a tag may stand off its wall's face
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,7 @@ class World:
     faults: tuple[Fault, ...] = ()
     wall_height: float = WALL_HEIGHT
     source: Path | None = None
+    events: tuple[Change, ...] = ()
     _cache: dict = field(default_factory=dict, compare=False, repr=False, init=False)
 
     @property
@@ -181,8 +187,9 @@ def _from_world_file(path: Path, doc: LocatedDict) -> World:
     if top.has("dock") and top.raw("dock") != "auto":
         dsec = top.section("dock")
         station = _pose(dsec)
-        if not _on_floor(data, station.compose(Pose2(0.3, 0.0, 0.0))):
-            raise top.error("dock", "the dock must stand on free floor against a wall, facing into the room")
+        if not _on_floor(data, station.compose(Pose2(0.3, 0.0, 0.0))) or not _against_wall(data, station):
+            raise top.error("dock", f"the dock at ({station.x:g}, {station.y:g}) must stand on free floor with its "
+                            f"back against a wall (within {_reach(data):g} m), facing into the room")
     else:
         try:
             station = place_dock(data)
@@ -231,14 +238,31 @@ def _from_world_file(path: Path, doc: LocatedDict) -> World:
         for item, loc in top.items("faults"):
             faults.append(fault_from_section(section_at(item, loc, path, "a fault")))
 
+    events = []
+    if top.has("events"):
+        for item, loc in top.items("events"):
+            events.append(change_from_section(section_at(item, loc, path, "a world change")))
+
     return World(name, data, dock, tuple(tags), tag_id, start, tuple(patches), base, computer,
-                 tuple(faults), wall_height, path)
+                 tuple(faults), wall_height, path, tuple(events))
 
 
 def _on_floor(data: MapData, pose: Pose2) -> bool:
     r, c = world_to_cell(data, np.array([[pose.x, pose.y]]))
     h, w = data.grid.shape
     return bool(0 <= r[0] < h and 0 <= c[0] < w and not solid_mask(data)[r[0], c[0]])
+
+
+def _reach(data: MapData) -> float:
+    return max(WALL_REACH, 1.5 * data.resolution)
+
+
+def _against_wall(data: MapData, pose: Pose2) -> bool:
+    """Whether a wall is right behind ``pose`` (within :func:`_reach`) and free floor right in front of it."""
+    step = data.resolution / 2
+    behind = [pose.compose(Pose2(-d, 0.0, 0.0)) for d in np.arange(step / 2, _reach(data) + 1e-9, step)]
+    front = pose.compose(Pose2(step, 0.0, 0.0))
+    return any(not _on_floor(data, q) for q in behind) and _on_floor(data, front)
 
 
 def _tags(top: Section, data: MapData, dock: Dock, dock_tag_id: int, wall_height: float) -> list[Tag]:
@@ -272,6 +296,10 @@ def _tags(top: Section, data: MapData, dock: Dock, dock_tag_id: int, wall_height
         seen.add(tid)
         out.append(Tag(tid, ts.number("x"), ts.number("y"), ts.number("z", TAG_HEIGHT, lo=0.0, hi=wall_height),
                        ts.number("yaw"), ts.number("size", TAG_SIZE, positive=True, hi=1.0)))
-        if not math.isfinite(out[-1].yaw):
+        tag = out[-1]
+        if not math.isfinite(tag.yaw):
             raise ts.error("yaw", "yaw must be finite")
+        if not _against_wall(data, Pose2(tag.x, tag.y, tag.yaw)):
+            raise UserError(f"tag {tid} at ({tag.x:g}, {tag.y:g}) must hang on a wall (within {_reach(data):g} m of "
+                            "its face) and face free floor (yaw points into the room)", path, *loc)
     return out

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,7 @@ class LifeLog:
     policy_at: dict[str, tuple[float, dict[str, Any]]] = field(default_factory=dict)  # state → (t, policy) on entry
     charging: bool = False
     end: float = 0.0
+    docked_at: list[float] = field(default_factory=list)  # [s] when each dock cycle ended on the charger
 
     def entered(self, state: str) -> list[float]:
         return [t for t, s in self.states if s == state]
@@ -33,8 +35,13 @@ class LifeLog:
 
 def live(world: Any, until: float, seed: int = 1, overrides: dict[str, Any] | None = None,
          stop_after_cycles: int | None = None, faults: tuple = (), mission: str | Path = "persistent",
-         robot_kwargs: dict[str, Any] | None = None) -> tuple[LifeLog, SimRobot, Runner]:
-    """Tick ``mission`` on ``world`` for ``until`` [s] of simulated time (or ``stop_after_cycles`` dock cycles)."""
+         robot_kwargs: dict[str, Any] | None = None,
+         on_state: Callable[[str, int, float, SimRobot], None] | None = None) -> tuple[LifeLog, SimRobot, Runner]:
+    """Tick ``mission`` on ``world`` for ``until`` [s] of simulated time (or ``stop_after_cycles`` dock cycles).
+
+    ``on_state(state, cycles, time, robot)`` is called whenever the mission enters a state: a test injects a
+    fault at the moment it means to test (the simulator's faults are data; adding one is the test's business).
+    """
     world = load_world(world) if isinstance(world, (str, Path)) else world
     robot = SimRobot(world, seed=seed, faults=list(faults), **(robot_kwargs or {}))
     compiled = compile_mission(resolve_mission(mission), overrides or {})
@@ -49,12 +56,17 @@ def live(world: Any, until: float, seed: int = 1, overrides: dict[str, Any] | No
         if state is not None and (not log.states or log.states[-1][1] != state):
             log.states.append((r.now, state))
             log.policy_at.setdefault(state, (r.now, r.read("/energy/policy") or {}))
+            if on_state is not None:
+                on_state(state, int(r.read("/mission/cycles") or 0), r.now, robot)
         obs = r.observation
         if obs is not None:
             log.lowest["base"] = min(log.lowest["base"], obs.battery.percent)
             if obs.computer_battery is not None:
                 log.lowest["computer"] = min(log.lowest["computer"], obs.computer_battery.percent)
-        log.cycles = r.read("/mission/cycles") or 0
+        cycles = r.read("/mission/cycles") or 0
+        if cycles != log.cycles:
+            log.docked_at.append(r.now)
+        log.cycles = cycles
         if stop_after_cycles is not None and log.cycles >= stop_after_cycles:
             r.request_stop()  # the runner stops the robot and halts the tree, as on Ctrl-C
 

@@ -7,22 +7,21 @@ algorithms can be checked against exact geometry without pybullet.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from homing.robot import Odometry, Pose2, Scan, Twist2
 
-from homing.map_server import OCCUPIED, MapData, load_map
+from homing.map_server import OCCUPIED, MapData
+from tests.floor_plans import plan
 
-SHARED_WORLDS = Path(__file__).resolve().parent.parent.parent / "shared" / "worlds"
 RANGE_MAX = 6.0  # [m] RPLIDAR A1 as the thesis used it
 RANGE_MIN = 0.15  # [m]
 SCAN_RATE = 5.5  # [Hz]
 
 
 def truth(name: str) -> MapData:
-    """One of the shared floor plans."""
-    return load_map(SHARED_WORLDS / f"{name}.yaml")
+    """One of the floor plans drawn for the tests (:mod:`tests.floor_plans`)."""
+    return plan(name)
 
 
 def _solid(world: MapData) -> np.ndarray:

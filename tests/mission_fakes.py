@@ -124,3 +124,23 @@ def tick(root: Any, robot: FakeRobot | None = None, dt: float = 0.1) -> Status:
     if robot is not None:
         robot.clock.t = round(robot.clock.t + dt, 9)
     return root.status
+
+
+def make_robot_interrupted(seed: int = 0) -> FakeRobot:
+    """A factory that is stopped half-way, as if Ctrl-C (or ``$HOMING_FAKE_SIGNAL``) arrived during start-up."""
+    import signal
+
+    os.kill(os.getpid(), getattr(signal, os.environ.get("HOMING_FAKE_SIGNAL", "SIGINT")))
+    return FakeRobot(seed=seed)
+
+
+NOT_A_FACTORY = 42  # ``--adapter tests.mission_fakes:NOT_A_FACTORY``
+
+
+def make_nothing(seed: int = 0) -> str:
+    """A factory that returns something that is not a robot."""
+    return f"robot {seed}"
+
+
+def make_robot_failing(seed: int = 0) -> FakeRobot:
+    raise RuntimeError("the serial port /dev/ttyUSB0 is busy")

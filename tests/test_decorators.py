@@ -240,3 +240,39 @@ def test_parallel_policies(success: object, scripts: tuple[list[Status], ...], w
 def test_parallel_rejects_impossible_policy() -> None:
     with pytest.raises(ValueError, match="1..2"):
         d.Parallel("p", [Scripted("a", [S]), Scripted("b", [S])], success=3)
+
+
+def test_guard_halts_a_condition_still_running_when_it_finishes() -> None:
+    # The condition subtree has not decided (RUNNING): the guard fails, and must not leave it running.
+    cond, child = Scripted("deciding", [R, S]), Scripted("explore", [R])
+    guard = d.Guard("guard", cond, child)
+    tick(guard)
+    assert statuses(guard, cond, child) == [F, N, N], "nothing below a finished guard stays RUNNING"
+    assert cond.halts == 1 and child.ticks == 0
+    tick(guard)  # the next activation starts the condition afresh
+    assert cond.starts == 2 and statuses(guard, cond, child) == [R, S, R]
+
+
+def test_round_robin_starts_at_first_child_after_a_whole_round_failed() -> None:
+    # Nav2 RoundRobin: all children failed → halt() → current_child_idx_ = 0.
+    a, b, c = Scripted("a", [S]), Scripted("b", [F]), Scripted("c", [F])
+    rr = d.RoundRobin("rr", [a, b, c])
+    assert tick(rr) == S  # a succeeds; the turn moves to b
+    a.script = [F]
+    assert tick(rr) == F  # b, c, a fail in turn: a whole round
+    assert (a.ticks, b.ticks, c.ticks) == (2, 1, 1)
+    a.script = [S]
+    assert tick(rr) == S
+    assert (a.ticks, b.ticks, c.ticks) == (3, 1, 1), "the next activation starts at the first child, not at b"
+
+
+def test_parallel_failure_threshold_as_bt_cpp_failure_count() -> None:
+    # py_trees' SuccessOnOne: the first failure fails it; BT.CPP failure_count = 1.
+    kids = [Scripted("a", [F]), Scripted("b", [R]), Scripted("c", after(3))]
+    par = d.Parallel("par", kids, success="one", failure=1)
+    assert tick(par) == F and kids[1].halts == 1
+    kids = [Scripted("a", [F]), Scripted("b", after(2)), Scripted("c", [R])]
+    auto = d.Parallel("p2", kids, success="one")  # 'auto': one failure does not decide it
+    assert [tick(auto), tick(auto)] == [R, S]
+    with pytest.raises(ValueError, match="failure must be 'all', 'auto'"):
+        d.Parallel("p3", [Scripted("x", [S])], failure=0)

@@ -78,3 +78,22 @@ def test_grid_built_in_known_world_matches_truth():
     for i, (p, o) in enumerate(zip(poses, odom, strict=True)):
         raw.update(odometry_msg(i / 5.5, o), cast_scan(world, p, i / 5.5, rng, dropout=0.02))
     assert cell_agreement(raw.grid, world, world_from_map=poses[0]) < agreement
+
+
+def test_a_blanked_scan_clears_nothing_while_a_scan_of_open_space_still_does():
+    # A wall 2 m ahead, seen once; then a lidar dropout blanks every ray: the wall must stay.
+    grid = OccupancyGrid(0.05, (-3.0, -3.0), (120, 120))
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    seen = np.where(np.abs(angles) < 0.3, 2.0 / np.cos(angles), np.inf).astype(np.float32)
+    scan = Scan(0.0, -math.pi, 2 * math.pi / 360, seen, 0.15, 6.0)
+    grid.integrate(scan, Pose2())
+    wall = grid.value_at(2.02, 0.0)
+    assert wall == OCCUPIED
+    blank = Scan(0.1, -math.pi, 2 * math.pi / 360, np.full(360, np.inf, np.float32), 0.15, 6.0)
+    for _ in range(20):
+        grid.integrate(blank, Pose2())
+    assert grid.value_at(2.02, 0.0) == OCCUPIED
+    # A scan that mostly returned, with a gap of no returns (open space beyond the lidar's reach), clears the gap.
+    open_gap = np.where(np.abs(angles - math.pi / 2) < 0.2, np.inf, 1.5).astype(np.float32)
+    grid.integrate(Scan(0.2, -math.pi, 2 * math.pi / 360, open_gap, 0.15, 6.0), Pose2())
+    assert grid.value_at(0.0, 4.0) == FREE

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -16,6 +16,7 @@ from homing.robot.hardware.robot_file import load_robot
 from homing.sim import load_world
 
 from homing.errors import UserError
+from tests.wall_clock import until
 
 
 @pytest.fixture
@@ -24,15 +25,6 @@ def emulation(tmp_path: Path) -> Iterator[Emulation]:
     emu.start()
     yield emu
     emu.stop()
-
-
-def _until(cond: Callable[[], bool], timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(0.02)
-    return cond()
 
 
 def test_adapter_reads_what_the_simulator_senses(emulation: Emulation) -> None:
@@ -73,16 +65,16 @@ def test_lost_device_stops_the_base_and_is_picked_up_again(emulation: Emulation)
     robot = open_robot(emulation.robot_file)
     try:
         robot.command(-0.1, 0.0)
-        assert _until(lambda: emulation.base.speed == -100, 1.0)
+        assert until(lambda: emulation.base.speed == -100, 1.0)
         emulation.unplug("lidar")
-        assert _until(lambda: robot.observe().devices_lost == ("lidar",), 3.0)
+        assert until(lambda: robot.observe().devices_lost == ("lidar",), 3.0)
         assert robot.command(-0.1, 0.0).v == 0.0  # no lidar, no driving
-        assert _until(lambda: emulation.base.speed == 0, 1.0)
+        assert until(lambda: emulation.base.speed == 0, 1.0)
         emulation.replug("lidar")
-        assert _until(lambda: robot.observe().devices_lost == (), 6.0)
+        assert until(lambda: robot.observe().devices_lost == (), 6.0)
         assert robot.lidar.reconnects >= 1
         assert robot.command(-0.1, 0.0).v == pytest.approx(-0.1)
-        assert _until(lambda: emulation.base.speed == -100, 1.0)
+        assert until(lambda: emulation.base.speed == -100, 1.0)
     finally:
         robot.close()
 
@@ -91,9 +83,9 @@ def test_watchdog_stops_a_base_left_without_commands(emulation: Emulation) -> No
     robot = open_robot(emulation.robot_file)
     try:
         robot.command(0.0, 0.5)
-        assert _until(lambda: emulation.base.speed != 0, 1.0)
+        assert until(lambda: emulation.base.speed != 0, 1.0)
         t0 = time.monotonic()
-        assert _until(lambda: emulation.base.speed == 0, 2.0)
+        assert until(lambda: emulation.base.speed == 0, 2.0)
         assert time.monotonic() - t0 >= 0.4  # cmd_timeout 0.6 s, less the command's own travel
     finally:
         robot.close()

@@ -120,3 +120,18 @@ def test_odometry_through_encoder_and_gyro_wrap_around() -> None:
     assert odom.pose.x == pytest.approx(x0 - 50 * per_tick * sum(math.cos(m) for m in mids), rel=1e-9)
     assert odom.pose.y == pytest.approx(y0 - 50 * per_tick * sum(math.sin(m) for m in mids), abs=1e-12)
     assert odom.pose.theta == pytest.approx(math.radians(-179.5))
+
+
+def test_the_emulated_base_answers_a_command_after_the_real_bases_dead_time() -> None:
+    from homing.emulators.kobuki import DEAD_TIME, KobukiFirmware
+
+    base = KobukiFirmware()
+    assert DEAD_TIME == 0.2  # firmware 1.2.0, yujinrobot/kobuki#389
+    base.receive(kp.encode_packet([kp.base_control(100, 0)]), now=1.0)  # straight at 0.1 m/s
+    base.receive(kp.encode_packet([kp.base_control(115, 1)]), now=1.1)  # then in place at 1 rad/s
+    assert base.velocity(1.19) == (0.0, 0.0)  # neither has reached the wheels yet
+    assert base.velocity(1.2) == pytest.approx((0.1, 0.0))
+    assert base.velocity(1.29) == pytest.approx((0.1, 0.0))
+    v, w = base.velocity(1.3)
+    assert v == pytest.approx(0.0, abs=1e-9) and w == pytest.approx(1.0, abs=0.005)  # 115 mm/s on a 230 mm bias
+    assert base.commands == 2

@@ -55,7 +55,7 @@ def test_plain_pgm_with_comments(tmp_path: Path) -> None:
         ("image: m.pgm\nresolution: 0.1\n", b"P5\n1 1\n255\n\xfe", "missing required key 'origin'"),
         ("image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"GIF89a", "m.pgm:1:1: not a PGM"),
         ("image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", b"P5\n4 4\n255\n\x00", "pixel data is short"),
-        ("image: m.pgm\nresolution: [0.1\n", None, "m.yaml:3:1: invalid YAML"),
+        ("image: m.pgm\nresolution: [0.1\n", None, "m.yaml:2:13: invalid YAML: this '[' is never closed"),
     ],
 )
 def test_bad_maps_name_the_file_and_line(tmp_path: Path, yaml_text: str, image: bytes | None, expect: str) -> None:

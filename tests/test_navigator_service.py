@@ -25,10 +25,10 @@ def _client(service: NavigationService, robot: object) -> py_trees.blackboard.Cl
     return client
 
 
-def test_the_dock_is_kept_out_when_the_robot_starts_on_it_and_leaves_take_zones(shared_worlds) -> None:  # type: ignore[no-untyped-def]
+def test_the_dock_is_kept_out_when_the_robot_starts_on_it_and_leaves_take_zones(floor_plans) -> None:  # type: ignore[no-untyped-def]
     from homing.sim.dock import DOCK_DEPTH
 
-    world = sim.load_world(shared_worlds / "room.yaml")
+    world = sim.load_world(floor_plans / "room.yaml")
     robot = sim.SimRobot(world, seed=1, camera=False)
     try:
         service = NavigationService()
@@ -65,8 +65,8 @@ def test_the_dock_is_kept_out_when_the_robot_starts_on_it_and_leaves_take_zones(
         robot.close()
 
 
-def test_no_dock_zone_when_the_robot_does_not_start_docked(shared_worlds) -> None:  # type: ignore[no-untyped-def]
-    world = sim.load_world(shared_worlds / "room.yaml")
+def test_no_dock_zone_when_the_robot_does_not_start_docked(floor_plans) -> None:  # type: ignore[no-untyped-def]
+    world = sim.load_world(floor_plans / "room.yaml")
     robot = sim.SimRobot(world, seed=1, camera=False, start=world.staging_pose(1.0))
     try:
         service = NavigationService()

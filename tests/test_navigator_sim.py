@@ -20,10 +20,10 @@ RATE = 10.0  # [Hz] ticks
 
 
 @pytest.mark.slow
-def test_reaches_a_goal_in_loop_without_bumping(shared_worlds) -> None:  # type: ignore[no-untyped-def]
+def test_reaches_a_goal_in_loop_without_bumping(floor_plans) -> None:  # type: ignore[no-untyped-def]
     from homing.sim import SimRobot, load_world
 
-    world = load_world(shared_worlds / "loop.yaml")
+    world = load_world(floor_plans / "loop.yaml")
     robot = SimRobot(world, seed=3)
     try:
         # The true map is the grid and map = odom at the start (truth used only to set up the test).
@@ -91,11 +91,11 @@ def _leave_dock(robot, nav: Navigator, goal: Pose2, world, seconds: float = 40.0
 
 
 @pytest.mark.slow
-def test_leaving_the_dock_for_a_goal_behind_never_bumps_with_the_dock_keepout(shared_worlds) -> None:  # type: ignore[no-untyped-def]
+def test_leaving_the_dock_for_a_goal_behind_never_bumps_with_the_dock_keepout(floor_plans) -> None:  # type: ignore[no-untyped-def]
     from homing.navigation.layers import dock_keepout
     from homing.sim import SimRobot, load_world
 
-    world = load_world(shared_worlds / "loop.yaml")
+    world = load_world(floor_plans / "loop.yaml")
     docked = world.dock_pose
     # 1 m behind the docked robot and 2 m to its left: it must turn round beside the (invisible) dock.
     goal = docked.compose(Pose2(-1.0, 2.0, 0.0))
@@ -121,13 +121,13 @@ def test_leaving_the_dock_for_a_goal_behind_never_bumps_with_the_dock_keepout(sh
 
 
 @pytest.mark.slow
-def test_a_bump_on_the_dock_marks_the_costmap_on_the_docks_face(shared_worlds) -> None:  # type: ignore[no-untyped-def]
+def test_a_bump_on_the_dock_marks_the_costmap_on_the_docks_face(floor_plans) -> None:  # type: ignore[no-untyped-def]
     from homing.navigation.costmap import LETHAL
     from homing.navigation.layers import BUMP_RIM
     from homing.sim import SimRobot, load_world
     from homing.sim.dock import DOCK_DEPTH, DOCK_WIDTH
 
-    world = load_world(shared_worlds / "room.yaml")
+    world = load_world(floor_plans / "room.yaml")
     # 0.3 m out from the docked pose and 0.07 m aside, facing the dock: off its guide (±4 cm), square to its face.
     robot = SimRobot(world, seed=5, camera=False, start=world.dock_pose.compose(Pose2(-0.3, 0.07, 0.0)))
     try:

@@ -15,7 +15,8 @@ except ModuleNotFoundError:  # Python 3.10
 
 from tests.conftest import REPO
 
-PARTS = ["robot", "sim", "perception", "mapping", "navigation", "behaviours", "missions", "benchmarks"]
+PARTS = ["robot", "sim", "perception", "mapping", "navigation", "lifecycle", "behaviours", "missions", "benchmarks",
+         "btxml", "logs", "emulators"]
 
 
 def test_every_folder_with_init_is_a_listed_package() -> None:
@@ -90,3 +91,12 @@ def test_log_formats_import_no_mission_language_simulator_or_benchmark() -> None
                 [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
             offenders += [f"{path.name}:{node.lineno}: {n}" for n in names if n.startswith(above)]
     assert not offenders, offenders
+
+
+def test_every_behaviour_module_imports_so_no_node_silently_goes_missing() -> None:
+    from homing.behaviours import load_nodes
+    from homing.behaviours.registry import NODES
+
+    assert load_nodes(entry_points=False) == []
+    for name in ("Undock", "GoHome", "ServoToStaging", "AutoDock", "Charge", "IsDocked", "EnoughEnergy", "Charged"):
+        assert name in NODES

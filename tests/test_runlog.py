@@ -179,3 +179,61 @@ def test_replay_command_reproduces_the_online_map_and_draws_it(tmp_path, capsys)
     assert (tmp_path / "fig.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "tag" in capsys.readouterr().out
     assert main(["replay", str(tmp_path / "nope.hlog"), "--slam"]) == 2
+
+
+def _frame_starts(raw: bytes) -> list[int]:
+    """Byte offsets of every frame in a log (the file's own layout: 8-byte header, then the payload)."""
+    import struct
+
+    pos, out = len(MAGIC), []
+    while pos < len(raw):
+        out.append(pos)
+        pos += 8 + struct.unpack_from("<I", raw, pos)[0]
+    return out
+
+
+@pytest.mark.parametrize("where", ["payload", "length"])
+def test_a_damaged_byte_is_corruption_at_its_offset_not_a_killed_run(tmp_path, where, capsys):
+    from homing.missions.cli import main
+
+    path = tmp_path / "run.hlog"
+    _record_online(path)
+    raw = bytearray(path.read_bytes())
+    starts = _frame_starts(bytes(raw))
+    assert len(starts) > 4
+    frame = starts[3]
+    if where == "payload":
+        raw[frame + 20] ^= 0x40  # one bit flipped inside the third record frame
+    else:
+        raw[frame + 3] = 0xFF  # its length now claims gigabytes
+    bad = tmp_path / "bad.hlog"
+    bad.write_bytes(bytes(raw))
+    with pytest.raises(UserError) as info:
+        RunLog(bad)
+    message = str(info.value)
+    assert message.startswith(f"{bad}: corrupted run log at byte {frame}: ")
+    assert ("fails its CRC check" if where == "payload" else "header is damaged") in message
+    assert "3 intact frames before it" in message and "killed" not in message
+    salvaged = RunLog(bad, salvage=True)
+    assert not salvaged.truncated and salvaged.damage is not None and salvaged.damage.startswith(f"byte {frame}")
+    intact = RunLog(path)
+    assert salvaged.records == [r for r in intact.records if r["t"] <= salvaged.end][: len(salvaged.records)]
+    assert 0 < salvaged.end < intact.end
+    assert main(["replay", str(bad), "--slam"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"corrupted run log at byte {frame}" in err
+    assert main(["replay", str(bad), "--slam", "--salvage"]) == 0
+    assert f"damaged at byte {frame}" in capsys.readouterr().err
+
+
+def test_a_log_of_a_newer_format_says_so(tmp_path):
+    path = tmp_path / "run.hlog"
+    _record_online(path)
+    newer = tmp_path / "newer.hlog"
+    newer.write_bytes(b"HOMINGLOG 2\n" + path.read_bytes()[len(MAGIC):])
+    with pytest.raises(UserError, match=r"newer.hlog:1:1: run log format version 2 is newer than this homing reads"):
+        RunLog(newer)
+    from tests.conftest import homing_cli
+
+    code, _, err = homing_cli("replay", str(newer), "--slam")
+    assert code == 2 and "run log format version 2 is newer than this homing reads" in err

@@ -149,7 +149,7 @@ def test_cli_run_no_view_prints_timestamped_changes(tmp_path: Path) -> None:
     assert "[      0.00 s] Drive: INVALID -> RUNNING" in lines
     assert "[      1.00 s] Drive: RUNNING -> SUCCESS" in lines
     assert lines[-2].startswith("stopped: success at t=1.00 s after 11 ticks")
-    assert lines[-1] == "final command v=0.000 m/s ω=0.000 rad/s (robot stopped)"
+    assert lines[-1].startswith("final command v=0.000 m/s ω=0.000 rad/s (robot stopped); root ")
 
 
 def test_cli_run_bad_until_is_a_user_error(tmp_path: Path) -> None:

@@ -53,4 +53,4 @@ def test_cli_run_world_until(tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
     assert lines[-2].startswith("stopped: time_limit at t=3.00 s after 30 ticks")
-    assert lines[-1] == "final command v=0.000 m/s ω=0.000 rad/s (robot stopped)"
+    assert lines[-1].startswith("final command v=0.000 m/s ω=0.000 rad/s (robot stopped); root ")

@@ -45,9 +45,9 @@ def test_lab_is_the_thesis_lab() -> None:
     assert lab.reachable_free().sum() == (lab.map.grid == FREE).sum()  # one connected lab
 
 
-def test_bare_floor_plan_gets_a_dock_against_a_wall_and_starts_docked(shared_worlds: Path) -> None:
+def test_bare_floor_plan_gets_a_dock_against_a_wall_and_starts_docked(floor_plans: Path) -> None:
     for name in ("loop", "room_with_corner", "corridor"):
-        world = load_world(shared_worlds / f"{name}.yaml")
+        world = load_world(floor_plans / f"{name}.yaml")
         station = world.dock.station
         assert not _free(world, station, -0.02), "no wall behind the dock"
         for ahead in np.arange(0.05, 1.5, 0.1):  # ~1 m clear in front of the docked robot
@@ -56,14 +56,14 @@ def test_bare_floor_plan_gets_a_dock_against_a_wall_and_starts_docked(shared_wor
                 assert _free(world, p, ahead)
         assert world.start == world.dock_pose
         assert world.dock_pose.distance_to(station) == pytest.approx(DOCK_DEPTH + 0.176)
-        assert load_world(shared_worlds / f"{name}.yaml").dock == world.dock  # deterministic
+        assert load_world(floor_plans / f"{name}.yaml").dock == world.dock  # deterministic
     robot = SimRobot(world, seed=1, camera=False)
     assert robot.charging and robot.observe().battery.on_dock
     robot.close()
 
 
-def test_reachable_free_is_the_start_component(shared_worlds: Path) -> None:
-    world = load_world(shared_worlds / "loop.yaml")
+def test_reachable_free_is_the_start_component(floor_plans: Path) -> None:
+    world = load_world(floor_plans / "loop.yaml")
     reach = world.reachable_free()
     assert reach.dtype == bool and reach.shape == world.map.grid.shape
     assert np.all(world.map.grid[reach] == FREE)
@@ -160,3 +160,30 @@ def test_sim_robot_speaks_the_adapter_contract() -> None:
     assert robot.observe().stamp == robot.clock.now()
     assert robot.limits.max_v == pytest.approx(0.7)
     robot.close()
+
+
+PHYSICAL = {  # a 4 m × 3 m room (box_room): walls' faces at x = 0, 4 and y = 0, 3
+    "dock_mid_room.yaml": ("map: room.yaml\ndock: {x: 2.0, y: 1.5, yaw: 0.0}\n", "dock_mid_room.yaml:2:7: the dock"),
+    "dock_backwards.yaml": ("map: room.yaml\ndock: {x: 0.0, y: 1.5, yaw: 3.1416}\n", "dock_backwards.yaml:2:7:"),
+    "tag_mid_room.yaml": ("map: room.yaml\ntags:\n  - {id: 3, x: 2.0, y: 1.5, yaw: 0.0}\n",
+                          "tag_mid_room.yaml:3:5: tag 3 at (2, 1.5) must hang on a wall"),
+    "tag_into_wall.yaml": ("map: room.yaml\ntags:\n  - {id: 3, x: 0.0, y: 1.5, yaw: 3.1416}\n",
+                           "tag_into_wall.yaml:3:5: tag 3"),
+    "tag_nan.yaml": ("map: room.yaml\ntags:\n  - {id: 3, x: .nan, y: 1.5, yaw: 0}\n", "tag_nan.yaml:3:"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(PHYSICAL))
+def test_a_dock_or_tag_off_the_wall_is_a_file_line_error(tmp_path: Path, name: str) -> None:
+    box_room(tmp_path, 4.0, 3.0)
+    text, expected = PHYSICAL[name]
+    with pytest.raises(UserError) as info:
+        load_world(world_file(tmp_path, text, name=name.removesuffix(".yaml")))
+    assert str(info.value).startswith(str(tmp_path / expected)), str(info.value)
+
+
+def test_a_dock_and_tag_on_the_wall_load(tmp_path: Path) -> None:
+    box_room(tmp_path, 4.0, 3.0)
+    world = load_world(world_file(tmp_path, "map: room.yaml\ndock: {x: 0.0, y: 1.5, yaw: 0.0}\n"
+                                            "tags:\n  - {id: 3, x: 4.0, y: 1.0, yaw: 3.1416}\n"))
+    assert world.dock.station.x == 0.0 and world.tag(3).x == 4.0

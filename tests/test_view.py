@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import re
 import shutil
 import subprocess
 import sys
@@ -36,7 +38,8 @@ def test_render_fits_80x24_with_header_statuses_and_feedback() -> None:
     text = console.export_text()
     lines = text.rstrip("\n").splitlines()
     assert len(lines) <= 24 and max(len(line) for line in lines) <= 80
-    assert lines[0].startswith("wander t 0:00:04.4") and "battery 77 %" in lines[0] and "state Exploring" in lines[0]
+    assert lines[0].startswith("wander t 0:00:04.4")
+    assert lines[1] == "state Exploring" and lines[2].startswith("base      77% ▕"), "facts under the header"
     assert any("● ⁇ Lifecycle" in line for line in lines)
     assert any("✘ → GoHome" in line or "✘ BatteryBelow" in line for line in lines)
     assert any("● Drive#2" in line for line in lines), "the running leaf (the turn after 4 s of driving)"
@@ -117,3 +120,50 @@ def test_live_view_in_a_real_terminal_and_ctrl_c(tmp_path: Path) -> None:
         assert record["commands"][-1][1:] == [0.0, 0.0], "the last command the robot got was a stop"
     finally:
         subprocess.run(["tmux", "kill-session", "-t", session], capture_output=True)
+
+
+@pytest.mark.tmux
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed (.ci/run installs it)")
+@pytest.mark.parametrize(("width", "height"), [(80, 24), (120, 40)])
+def test_live_view_shows_the_map_and_facts_and_keeps_what_ran_in_its_final_frame(tmp_path: Path, width: int,
+                                                                                  height: int) -> None:
+    session = f"homing-{uuid.uuid4().hex[:8]}"
+    exit_file = tmp_path / "exit"
+    command = (f"cd {REPO} && {sys.executable} -m homing.missions.cli run explore --world lab --seed 1 --speed 20; "
+               f"echo $? > {exit_file}; sleep 60")
+    subprocess.run(["tmux", "new-session", "-d", "-s", session, "-x", str(width), "-y", str(height), command],
+                   check=True)
+    try:
+        assert _wait_for(lambda: "▶ Explore: goal" in _pane(session) and "mapped" in _pane(session), 180), _pane(session)
+        screen = _pane(session)
+        lines = screen.splitlines()
+        assert len(lines) <= height and max(map(len, lines)) <= width
+        assert "state Exploring" in screen and "base " in screen and "computer " in screen
+        assert "pose (" in screen and " m " in screen and "°" in screen, "poses in metres and degrees"
+        assert re.search(r"mapped \d+\.\d m²", screen) and "frontiers " in screen
+        braille_chars = sum(1 for ch in screen if 0x2801 <= ord(ch) <= 0x28FF)
+        assert braille_chars > 40, "the map is drawn in braille"
+        assert any(arrow in screen for arrow in "→↗↑↖←↙↓↘"), "the robot"
+        subprocess.run(["tmux", "send-keys", "-t", session, "C-c"], check=True)
+        assert _wait_for(lambda: exit_file.exists() and exit_file.read_text().strip() != ""), _pane(session)
+        final = _pane(session)
+        assert exit_file.read_text().strip() == "130", final
+        assert "■ halted: Explore was running" in final, "the final frame shows what was running"
+        assert "● ⇉ UntilDoneOrTimeLimit" in final and "explore t 0:" in final, "its statuses and header stay on screen"
+        assert "stopped: interrupted by Ctrl-C" in final and "Traceback" not in final
+    finally:
+        subprocess.run(["tmux", "kill-session", "-t", session], capture_output=True)
+
+
+def test_without_the_view_the_same_facts_are_plain_lines(tmp_path: Path) -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "homing.missions.cli", "run", str(WANDER), "--adapter", "tests.mission_fakes:make_robot",
+         "--seed", "1", "--no-view", "--until", "65 s"],
+        capture_output=True, text=True, timeout=120, cwd=REPO, env={**os.environ, "HOMING_FAKE_BATTERY": "77"},
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    facts = [line for line in out.stdout.splitlines() if "· base" in line or line.endswith("base 77%")]
+    stamps = [float(line[1:].split(" s]")[0]) for line in facts]
+    assert stamps[:3] == [0.0, 30.0, 60.0] and stamps[-1] == 65.0, stamps  # every 30 s and at the end
+    assert all("state " in line and "base 77%" in line for line in facts[1:]), facts

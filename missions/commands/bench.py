@@ -8,6 +8,8 @@ import pkgutil
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from homing.missions.commands._args import output_file, plain_text
+
     from homing import benchmarks
 
     parser = sub.add_parser(
@@ -22,11 +24,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         module = importlib.import_module(f"{benchmarks.__name__}.{info.name}")
         if not (hasattr(module, "add_arguments") and hasattr(module, "run")):
             continue
-        doc = (module.__doc__ or "").strip().splitlines()
+        doc = plain_text(module.__doc__)
         name = info.name.replace("_", "-")  # slam_logs.py is `homing bench slam-logs` (slam_logs works too)
         aliases = [info.name] if name != info.name else []
-        bench = names.add_parser(name, aliases=aliases, help=doc[0] if doc else None, description=module.__doc__)
+        bench = names.add_parser(name, aliases=aliases, help=doc.split(". ")[0].split("\n\n")[0] if doc else None,
+                                 description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
         module.add_arguments(bench)
-        bench.add_argument("--json", metavar="PATH", help="write the figures as JSON to PATH")
+        bench.add_argument("--json", metavar="PATH", type=output_file("--json"), help="write the figures as JSON to PATH")
         bench.set_defaults(func=module.run)
     parser.set_defaults(func=lambda args: (parser.print_help(), 2)[1])

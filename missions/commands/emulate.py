@@ -1,4 +1,4 @@
-"""``homing emulate --world WORLD``: serve a simulated TurtleBot 2 as real devices on pseudo-terminals."""
+"""``homing emulate --world WORLD``: serve a simulated TurtleBot 2 as real devices (pseudo-terminals, MJPEG)."""
 
 from __future__ import annotations
 
@@ -13,10 +13,11 @@ from types import FrameType
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "emulate",
-        help="emulate the robot's Kobuki base and RPLIDAR on pseudo-terminals, with the simulator as physics",
+        help="emulate the robot's Kobuki, RPLIDAR and camera (ptys, MJPEG over HTTP), with the simulator as physics",
         description="Run the simulated robot on the wall clock behind a Kobuki and an RPLIDAR that speak their "
-        "serial protocols on pseudo-terminals. Prints each device's path on a line naming it, and a robot "
-        "file for 'homing run MISSION --robot ROBOT.yaml'; runs until Ctrl-C.",
+        "serial protocols on pseudo-terminals, and a camera streaming MJPEG over HTTP on localhost. Prints each "
+        "device's path (the camera's URL) on a line naming it, and a robot file for "
+        "'homing run MISSION --robot ROBOT.yaml'; runs until Ctrl-C.",
     )
     parser.add_argument("--world", required=True, help="a bundled world's name, a world YAML or a map_server YAML")
     parser.add_argument("--seed", type=int, default=0, help="the simulation's seed (same seed, same physics)")
@@ -24,12 +25,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(default: a new temporary folder)")  # fmt: skip
     parser.add_argument("--noise", type=float, default=0.0, metavar="P",
                         help="line noise: each byte the devices send has a bit flipped with probability P")
+    parser.add_argument("--dead-time", type=float, default=None, metavar="S",
+                        help="seconds from a base command to the wheels' response (default: the real base's 0.2)")
+    parser.add_argument("--camera-port", type=int, default=0, metavar="PORT",
+                        help="serve the camera's MJPEG stream on this localhost port (default: a free one)")
+    parser.add_argument("--no-camera", action="store_true", help="no camera (nothing rendered, no stream)")
     parser.add_argument("--until", metavar="DURATION", help="stop after this much time, e.g. 90s (default: Ctrl-C)")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from homing.emulators.emulation import Emulation
+    from homing.emulators.kobuki import DEAD_TIME
     from homing.emulators.pty_link import LineNoise
     from homing.missions.runner import parse_duration
     from homing.sim import load_world
@@ -38,6 +45,10 @@ def run(args: argparse.Namespace) -> int:
 
     if not 0.0 <= args.noise < 1.0:
         raise UserError(f"--noise must be a probability in [0, 1), not {args.noise:g}")
+    if args.dead_time is not None and not 0.0 <= args.dead_time <= 5.0:
+        raise UserError(f"--dead-time must be in [0, 5] s, not {args.dead_time:g}")
+    if not 0 <= args.camera_port <= 65535:
+        raise UserError(f"--camera-port must be a TCP port in 0..65535, not {args.camera_port}")
     try:
         until = parse_duration(args.until) if args.until else None
     except ValueError as err:
@@ -45,8 +56,9 @@ def run(args: argparse.Namespace) -> int:
     world = load_world(args.world)
     folder = args.dir or tempfile.mkdtemp(prefix="homing-emulate-")
     try:
-        emulation = Emulation(world, folder, seed=args.seed,
-                              noise=LineNoise(flip=args.noise, seed=args.seed))  # fmt: skip
+        emulation = Emulation(world, folder, seed=args.seed, noise=LineNoise(flip=args.noise, seed=args.seed),
+                              camera=not args.no_camera, camera_port=args.camera_port,
+                              dead_time=DEAD_TIME if args.dead_time is None else args.dead_time)  # fmt: skip
     except OSError as err:
         raise UserError(f"--dir: cannot use {folder}: {err.strerror}", folder) from None
     done = threading.Event()
@@ -56,9 +68,16 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
-    emulation.start()
+    try:
+        emulation.start()
+    except OSError as err:
+        emulation.robot.close()
+        raise UserError(f"--camera-port: cannot serve the camera on 127.0.0.1:{args.camera_port}: "
+                        f"{err.strerror or err}") from None  # fmt: skip
     print(f"kobuki: {emulation.base_link.link}")
     print(f"rplidar: {emulation.lidar_link.link}")
+    if emulation.camera_url is not None:
+        print(f"camera: {emulation.camera_url}")
     print(f"computer battery: {emulation.folder / 'computer_battery'}")
     print(f"robot file: {emulation.robot_file}")
     print(f"world {world.name}, seed {args.seed}: running until Ctrl-C", flush=True)
@@ -68,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         emulation.stop()
     s = emulation.status()
     x, y, th = s["truth"]
-    print(f"stopped at t={s['time']:.1f} s: {s['packets']} packets sent, {s['commands']} commands received; "
-          f"robot at ({x:.2f}, {y:.2f}, {th:.2f}), {s['distance']:.2f} m travelled")  # fmt: skip
+    print(f"stopped at t={s['time']:.1f} s: {s['packets']} packets sent, {s['commands']} commands received, "
+          f"{s['frames']} camera frames; robot at ({x:.2f}, {y:.2f}, {th:.2f}), {s['distance']:.2f} m travelled")  # fmt: skip
     sys.stdout.flush()
     return 0

@@ -16,9 +16,12 @@ import math
 
 PANEL_COLUMNS = 3  # panels per row of the picture
 TITLE_HEIGHT = 22  # [px] band above each panel for its title
+MAX_SCALE = 16  # [px/cell] a 500-cell map is then 8000 px a side
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from homing.missions.commands._args import output_file, seed, whole
+
     parser = sub.add_parser(
         "map",
         help="inspect a saved occupancy grid (map_server YAML + PGM)",
@@ -32,12 +35,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "chooses from the robot's pose (the thesis's figures 2-3 to 2-6).",
     )
     show.add_argument("map", metavar="MAP", help="map_server YAML (e.g. saved by homing bench explore --save-maps)")
-    show.add_argument("--out", required=True, metavar="PNG", help="picture to write")
+    show.add_argument("--out", required=True, metavar="PNG", type=output_file("--out"), help="picture to write")
     show.add_argument("--strategy", action="append", metavar="NAME", help="strategy to draw (repeatable; default: all)")
     show.add_argument("--robot", nargs=3, type=float, metavar=("X", "Y", "THETA"),
                       help="robot pose in the map frame [m, m, rad] (default: the map frame's origin)")
-    show.add_argument("--seed", type=int, default=0, help="seed of the strategies' random choices")
-    show.add_argument("--scale", type=int, default=0, help="pixels per cell (default: fit ~500 px per panel)")
+    show.add_argument("--seed", type=seed, default=0, help="seed of the strategies' random choices")
+    show.add_argument("--scale", type=whole(0, MAX_SCALE), default=0,
+                      help=f"pixels per cell, 1 … {MAX_SCALE} (default: fit ~500 px per panel)")
     show.set_defaults(func=_show)
     parser.set_defaults(func=lambda args: (parser.print_help(), 2)[1])
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import inspect
 import sys
 
 
@@ -23,6 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from homing.behaviours import load_nodes
     from homing.behaviours.registry import NODES, SERVICES
+    from homing.missions.commands._args import plain_text
     from homing.missions.schema import describe_param, suggest
 
     from homing.errors import UserError
@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"unknown node '{args.name}'{suggest(args.name, [*NODES, *SERVICES])}")
         kind = getattr(spec, "kind", "service")
         print(f"{spec.name} ({kind}, from {getattr(spec, 'source', spec.factory.__module__)})\n")
-        print(inspect.cleandoc(spec.factory.__doc__ or spec.doc))
+        print(plain_text(spec.factory.__doc__ or spec.doc))
         _details(spec, describe_param)
         return 0
     order = ("composite", "decorator", "action", "condition")
@@ -47,21 +47,22 @@ def run(args: argparse.Namespace) -> int:
             print(f"\n{kind}s:")
         for name in names:
             spec = NODES[name]
-            print(f"  {name} — {spec.doc}")
+            print(f"  {name} — {plain_text(spec.doc)}")
             _details(spec, describe_param, indent="      ")
     if not args.kind or args.kind == "service":
         print("\nservices:" + ("" if SERVICES else " (none registered)"))
         for name in sorted(SERVICES):
             spec = SERVICES[name]
-            print(f"  {name} — {spec.doc}")
+            print(f"  {name} — {plain_text(spec.doc)}")
             _details(spec, describe_param, indent="      ")
     return 0
 
 
 def _details(spec: object, describe: object, indent: str = "  ") -> None:
     slots = getattr(spec, "child_slots", ())
+    optional = getattr(spec, "optional", ())
     if slots:
-        print(f"{indent}children: {', '.join(slots)}")
+        print(f"{indent}children: {', '.join(s + (' (optional)' if s in optional else '') for s in slots)}")
     for p in getattr(spec, "params", ()):
         print(f"{indent}{describe(p)}")  # type: ignore[operator]
     for label, keys in (("reads", getattr(spec, "reads", ())), ("writes", getattr(spec, "writes", ()))):

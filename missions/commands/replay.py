@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -40,21 +41,28 @@ def _defaults() -> dict[str, Any]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from homing.missions.commands._args import output_file, output_map, plain_text, positive
+
     parser = sub.add_parser(
         "replay", help="replay a log (homing run, CARMEN, ROS bag): offline SLAM, map picture, MCAP export",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=plain_text(__doc__), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("run", metavar="LOG", help="a homing run log, a CARMEN log or a ROS 1/2 bag")
     parser.add_argument("--slam", nargs="?", const="default", choices=("tags", *OFFLINE, "default"), metavar="METHOD",
                         help="SLAM to run: grid, graph, odometry, scan_matching, or tags (a homing run's landmark "
                              "SLAM; the default for a homing run log; graph for any other log)")
-    parser.add_argument("--out", metavar="PNG", help="draw the map and trajectory (tags: trajectories and tags)")
-    parser.add_argument("--save-map", metavar="YAML", help="save the SLAM's occupancy grid as a map_server map")
+    parser.add_argument("--out", metavar="PNG", type=output_file("--out"),
+                        help="draw the map and trajectory (tags: trajectories and tags)")
+    parser.add_argument("--save-map", metavar="YAML", type=output_map("--save-map"),
+                        help="save the SLAM's occupancy grid as a map_server map")
     parser.add_argument("--mcap", metavar="DIR", help="export the log as a ROS 2 bag in MCAP to the new folder DIR")
-    parser.add_argument("--until", type=float, metavar="T", help="replay only the first T seconds [s]")
-    parser.add_argument("--json", metavar="PATH", help="write the result as JSON (landmarks, or the trajectory)")
+    parser.add_argument("--until", type=positive, metavar="T", help="replay only the first T seconds [s]")
+    parser.add_argument("--json", metavar="PATH", type=output_file("--json"),
+                        help="write the result as JSON (landmarks, or the trajectory)")
     parser.add_argument("--scan-topic", metavar="TOPIC", help="a bag's sensor_msgs/LaserScan topic")
     parser.add_argument("--odom-topic", metavar="TOPIC", help="a bag's nav_msgs/Odometry topic")
+    parser.add_argument("--salvage", action="store_true",
+                        help="replay a damaged homing run log up to the damage (default: report it and stop)")
     parser.set_defaults(func=run)
 
 
@@ -103,16 +111,14 @@ def world_from_map_frame(log: Any, until: float | None = None) -> Any:
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
-    """Every output path writable before the (long) SLAM run starts."""
+    """The --mcap folder must be new and makeable (the files were checked while parsing), before SLAM runs."""
     from homing.errors import UserError
+    from homing.outputs import check_folder
 
-    for flag, path in (("--out", args.out), ("--save-map", args.save_map), ("--json", args.json)):
-        if path and Path(path).is_dir():
-            raise UserError(f"{flag}: is a folder", path)
-        if path and Path(path).parent.exists() and not Path(path).parent.is_dir():
-            raise UserError(f"{flag}: its parent is not a folder", path)
     if args.mcap and Path(args.mcap).exists():
         raise UserError("--mcap: already exists (a bag is written to a new folder)", args.mcap)
+    if args.mcap:
+        check_folder(args.mcap, "--mcap")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -123,10 +129,8 @@ def run(args: argparse.Namespace) -> int:
     if not (args.slam or args.out or args.json or args.mcap or args.save_map):
         raise UserError("nothing to do: give --slam [METHOD], --out PNG, --save-map YAML, --mcap DIR or --json PATH",
                         args.run)
-    if args.until is not None and not args.until > 0:
-        raise UserError(f"--until must be positive, not {args.until:g}")
     _check_outputs(args)
-    log = open_log(args.run, args.scan_topic, args.odom_topic)
+    log = open_log(args.run, args.scan_topic, args.odom_topic, salvage=args.salvage)
     for w in log.warnings[:10]:
         print(f"warning: {w}")
     if len(log.warnings) > 10:
@@ -150,7 +154,9 @@ def run(args: argparse.Namespace) -> int:
     truth_tags = _true_tags(log.meta)
     world_from_map = world_from_map_frame(log, args.until)
     landmarks = slam.landmarks()
-    if log.truncated:
+    if log.damage:
+        print(f"warning: {args.run}: damaged at {log.damage}: replayed up to {log.end:.1f} s", file=sys.stderr)
+    elif log.truncated:
         print(f"{args.run}: log ends mid-frame (killed run?): replayed up to {log.end:.1f} s")
     if args.slam or not (args.out or args.json or args.mcap):
         print(f"{len(slam.keyframes)} keyframes, {len(landmarks)} tags, {slam.n_tag_factors} tag factors; "

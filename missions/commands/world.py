@@ -6,8 +6,13 @@ import argparse
 import io
 import math
 
+MIN_DPI, MAX_DPI = 30, 600  # [dots/inch] the 8-inch figure: 240 … 4800 pixels a side
+FIGURE_INCHES = 8  # the picture's side, before its margins
+
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from homing.missions.commands._args import output_file, whole
+
     parser = sub.add_parser(
         "world",
         help="inspect a simulated world (a bundled name, a world YAML or a map_server YAML)",
@@ -20,8 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Draw a world to a PNG: floor plan, dock, tags, patches and start pose.",
     )
     show.add_argument("world", metavar="WORLD", help="bundled world name (e.g. lab) or path to a YAML file")
-    show.add_argument("--out", required=True, metavar="PNG", help="picture to write")
-    show.add_argument("--dpi", type=int, default=120, help="resolution of the picture (default 120)")
+    show.add_argument("--out", required=True, metavar="PNG", type=output_file("--out"), help="picture to write")
+    show.add_argument("--dpi", type=whole(MIN_DPI, MAX_DPI), default=120, help=f"resolution of the picture ({MIN_DPI}…{MAX_DPI}, default 120)")
     show.set_defaults(func=_show)
     parser.set_defaults(func=lambda args: (parser.print_help(), 2)[1])
 
@@ -39,6 +44,18 @@ def _show(args: argparse.Namespace) -> int:
     return 0
 
 
+def block_any(mask, k: int):  # noqa: ANN001, ANN201 - numpy, imported lazily
+    """(⌈H/k⌉, ⌈W/k⌉) bool: whether any cell of each k × k block of the (H, W) bool ``mask`` is True."""
+    import numpy as np
+
+    if k == 1:
+        return mask
+    h, w = mask.shape
+    padded = np.zeros((-(-h // k) * k, -(-w // k) * k), bool)
+    padded[:h, :w] = mask
+    return padded.reshape(padded.shape[0] // k, k, padded.shape[1] // k, k).any(axis=(1, 3))
+
+
 def draw_world(world, dpi: int = 120) -> bytes:  # noqa: ANN001 - homing.sim.world.World, imported lazily
     """PNG bytes of a world's picture."""
     import matplotlib
@@ -51,20 +68,24 @@ def draw_world(world, dpi: int = 120) -> bytes:  # noqa: ANN001 - homing.sim.wor
     from homing.sim.dock import DOCK_DEPTH, DOCK_WIDTH, FIELD_DEPTH, FIELD_HALF_WIDTH, NEAR_RANGE
     from matplotlib.patches import Circle, Polygon, Rectangle
 
-    from homing.map_server import FREE, OCCUPIED
+    from homing.map_server import FREE, OCCUPIED, UNKNOWN
 
     m = world.map
     grid = np.asarray(m.grid)
-    img = np.full(grid.shape, 0.75)
-    img[grid == FREE] = 1.0
-    img[grid == OCCUPIED] = 0.0
+    # A large map is drawn in blocks of k × k cells (a wall anywhere in a block shows), so the picture never
+    # holds more pixels than the figure has: a 5000 × 5000 map costs megabytes, not gigabytes.
+    k = max(1, math.ceil(max(grid.shape) / (FIGURE_INCHES * dpi)))
+    walls, free = block_any(grid == OCCUPIED, k), block_any(grid == FREE, k)
+    img = np.full(walls.shape, 191, np.uint8)
+    img[free] = 255
+    img[walls] = 0
     ox, oy, _ = m.origin
-    extent = (ox, ox + m.width_m, oy, oy + m.height_m)
-    fig, ax = plt.subplots(figsize=(8, 8))
-    ax.imshow(img, cmap="gray", origin="lower", extent=extent, vmin=0, vmax=1, interpolation="nearest")
+    extent = (ox, ox + walls.shape[1] * k * m.resolution, oy, oy + walls.shape[0] * k * m.resolution)
+    fig, ax = plt.subplots(figsize=(FIGURE_INCHES, FIGURE_INCHES))
+    ax.imshow(img, cmap="gray", origin="lower", extent=extent, vmin=0, vmax=255, interpolation="nearest")
     reach = world.reachable_free()
-    overlay = np.zeros(grid.shape + (4,))
-    overlay[reach] = (0.55, 0.8, 1.0, 0.25)
+    overlay = np.zeros(walls.shape + (4,), np.uint8)
+    overlay[block_any(reach, k) & ~walls] = (140, 204, 255, 64)
     ax.imshow(overlay, origin="lower", extent=extent, interpolation="nearest")
 
     for p in world.patches:
@@ -100,16 +121,17 @@ def draw_world(world, dpi: int = 120) -> bytes:  # noqa: ANN001 - homing.sim.wor
                     fontsize=7, color=colour, ha="center", va="center",
                     arrowprops=dict(arrowstyle="<-", color=colour, lw=0.8))
 
-    area = reach.sum() * m.resolution ** 2
+    area = float(reach.sum()) * m.resolution ** 2
     ax.set_title(f"{world.name}: {len(world.tags)} tags (dock tag {world.dock_tag_id}), "
                  f"reachable free area {area:.1f} m²")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ys, xs = np.nonzero(grid != -1)
+    known = grid != UNKNOWN
+    xs, ys = np.flatnonzero(known.any(axis=0)), np.flatnonzero(known.any(axis=1))
     if xs.size:
         pad = 0.5
-        ax.set_xlim(ox + xs.min() * m.resolution - pad, ox + (xs.max() + 1) * m.resolution + pad)
-        ax.set_ylim(oy + ys.min() * m.resolution - pad, oy + (ys.max() + 1) * m.resolution + pad)
+        ax.set_xlim(ox + xs[0] * m.resolution - pad, ox + (xs[-1] + 1) * m.resolution + pad)
+        ax.set_ylim(oy + ys[0] * m.resolution - pad, oy + (ys[-1] + 1) * m.resolution + pad)
     ax.set_aspect("equal")
     ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
     buf = io.BytesIO()

@@ -1,18 +1,28 @@
-"""A UVC camera through OpenCV, rectified with the intrinsics of a ROS ``camera_info`` YAML file.
+"""A camera through OpenCV (UVC device, network stream or video file), rectified with a ROS ``camera_info`` YAML file.
 
 ``load_calibration(path)`` reads the file ROS's ``camera_calibration`` writes
 (``image_width``, ``image_height``, ``camera_matrix``, ``distortion_model``,
 ``distortion_coefficients``, ``rectification_matrix``,
 ``projection_matrix``), every mistake reported at ``file:line:col``.
 :class:`UvcCamera` grabs frames from ``cv2.VideoCapture(source)`` in a
-thread (a device index like ``0`` for ``/dev/video0``, a device path, or a
-video file: a file plays at ``rate`` and starts again when it ends), turns
-them RGB, and rectifies them as ROS's ``image_proc`` does: the undistorted
-image has the projection matrix's intrinsics (fx = P[0,0], fy = P[1,1],
-cx = P[0,2], cy = P[1,2]), which is what the contract's
+thread. The source is a device index like ``0`` for ``/dev/video0``, a
+device path, a network stream's URL (``http://host:8080/?action=stream``,
+MJPEG over HTTP as IP cameras and mjpg-streamer serve it, or ``rtsp://``;
+read by OpenCV's FFmpeg backend with open and read timeouts, so a camera
+that hangs is lost rather than waited on forever), or a video file (played
+at ``rate`` and started again when it ends). Frames are turned RGB and
+rectified as ROS's ``image_proc`` does: the undistorted image has the
+projection matrix's intrinsics (fx = P[0,0], fy = P[1,1], cx = P[0,2],
+cy = P[1,2]), which is what the contract's
 :class:`~homing.robot.types.CameraInfo` (no distortion) states. The
 distortion models: ``plumb_bob`` and ``rational_polynomial`` (OpenCV's
 radial-tangential), ``equidistant`` (OpenCV's fisheye).
+
+A live source streaming faster than ``rate`` has frames dropped, keeping
+one whenever at least 0.9 of a period has passed since the last kept one
+(so a source at the rate itself, with some jitter, loses none). A frame is
+stamped with the adapter's clock when it arrives, less ``delay`` [s], the
+source's known capture-to-arrival latency (0 unless measured).
 
 The camera is lost when no frame has come for ``silence`` seconds; the
 thread reopens it every second meanwhile.
@@ -20,6 +30,7 @@ thread reopens it every second meanwhile.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -36,6 +47,10 @@ from homing.yamlfile import load
 
 MODELS = ("plumb_bob", "rational_polynomial", "equidistant")
 RETRY = 1.0  # [s] between attempts to reopen a lost camera
+KEEP_FRACTION = 0.9  # a live frame is kept once this share of a period has passed since the last kept one
+MIN_SILENCE = 2.0  # [s] the shortest silence that counts as a lost camera
+STREAM_TIMEOUT = 3.0  # [s] a network stream that opens or sends nothing for this long has failed
+URL_SCHEMES = ("http://", "https://", "rtsp://", "rtp://", "udp://", "tcp://")
 
 
 @dataclass(frozen=True)
@@ -94,6 +109,25 @@ def load_calibration(path: str | Path) -> Calibration:
     return Calibration(width, height, K, D, R, P, model)
 
 
+def pinhole(width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> Calibration:
+    """The calibration of an ideal pinhole camera (no distortion): K = P's left 3 × 3."""
+    K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    return Calibration(width, height, K, np.zeros(5), np.eye(3), np.hstack([K, np.zeros((3, 1))]))
+
+
+def calibration_yaml(cal: Calibration, name: str = "camera") -> str:
+    """``cal`` as the ROS ``camera_info`` YAML that :func:`load_calibration` reads (and camera_calibration writes)."""
+
+    def matrix(key: str, m: np.ndarray, rows: int) -> str:
+        data = ", ".join(repr(float(v)) for v in m.ravel())
+        return f"{key}:\n  rows: {rows}\n  cols: {m.size // rows}\n  data: [{data}]\n"
+
+    return (f"image_width: {cal.width}\nimage_height: {cal.height}\ncamera_name: {name}\n"
+            + matrix("camera_matrix", cal.K, 3) + f"distortion_model: {cal.model}\n"
+            + matrix("distortion_coefficients", cal.D, 1) + matrix("rectification_matrix", cal.R, 3)
+            + matrix("projection_matrix", cal.P, 3))  # fmt: skip
+
+
 class Rectifier:
     """Undistorts (H, W, 3) images of one calibration onto its projection matrix's pinhole camera."""
 
@@ -116,18 +150,24 @@ class Rectifier:
         return cv2.remap(image, self.maps[0], self.maps[1], cv2.INTER_LINEAR)
 
 
+def is_url(source: int | str) -> bool:
+    """Whether a camera source is a network stream's URL (not a device index or a path)."""
+    return isinstance(source, str) and source.lower().startswith(URL_SCHEMES)
+
+
 class UvcCamera:
     """A camera read by OpenCV in a thread; :meth:`latest` gives the newest rectified RGB frame."""
 
     def __init__(self, source: int | str, calibration: Calibration, base_from_optical: np.ndarray,
-                 now: Callable[[], float], rate: float = 5.0, silence: float | None = None):
+                 now: Callable[[], float], rate: float = 5.0, silence: float | None = None, delay: float = 0.0):
         self.name = "camera"
         self.source = source
         self.info = calibration.info(base_from_optical)
         self.rectify = Rectifier(calibration)
         self.now = now
         self.rate = rate  # [Hz] frames kept per second (a file is paced to it)
-        self.silence = silence if silence is not None else max(1.0, 5.0 / rate)
+        self.silence = silence if silence is not None else max(MIN_SILENCE, 5.0 / rate)
+        self.delay = delay  # [s] subtracted from the arrival time to stamp a frame
         self.lock = threading.Lock()
         self.image: CameraImage | None = None
         self.frames = 0
@@ -138,7 +178,7 @@ class UvcCamera:
         self._cap: Any = None  # a cv2.VideoCapture
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._is_file = isinstance(source, str) and Path(source).is_file()
+        self._is_file = isinstance(source, str) and not is_url(source) and Path(source).is_file()
 
     def open(self) -> None:
         """Open the source and start grabbing; UserError-free :class:`CameraError` if it cannot."""
@@ -148,9 +188,12 @@ class UvcCamera:
         self._thread.start()
 
     def close(self) -> None:
+        """Stop the thread and release the source (the thread releases it if a read outlasts the wait)."""
         self._stop.set()
         if self._thread is not None:
-            self._thread.join(timeout=2.0)
+            self._thread.join(timeout=STREAM_TIMEOUT + 1.0)
+            if self._thread.is_alive():
+                return
         if self._cap is not None:
             self._cap.release()
             self._cap = None
@@ -166,7 +209,12 @@ class UvcCamera:
     def _open(self) -> bool:
         import cv2
 
-        cap = cv2.VideoCapture(self.source)
+        if is_url(self.source):
+            ms = round(STREAM_TIMEOUT * 1000)
+            cap = cv2.VideoCapture(self.source, cv2.CAP_FFMPEG,
+                                   [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, ms, cv2.CAP_PROP_READ_TIMEOUT_MSEC, ms])
+        else:
+            cap = cv2.VideoCapture(self.source)
         if not cap.isOpened():
             cap.release()
             return False
@@ -177,7 +225,7 @@ class UvcCamera:
 
     def _run(self) -> None:
         period = 1.0 / self.rate
-        next_keep = time.monotonic()
+        next_keep, last_kept = time.monotonic(), -math.inf
         while not self._stop.is_set():
             cap = self._cap
             if cap is None:
@@ -197,22 +245,28 @@ class UvcCamera:
                 self.losses += 1
                 continue
             wall = time.monotonic()
-            if self._is_file and wall < next_keep:
-                self._stop.wait(next_keep - wall)  # a file has no rate of its own: play it at `rate`
-            elif not self._is_file and wall < next_keep:
+            if self._is_file:
+                if wall < next_keep:
+                    self._stop.wait(next_keep - wall)  # a file has no rate of its own: play it at `rate`
+                next_keep = max(next_keep + period, time.monotonic() - period)
+            elif wall - last_kept < KEEP_FRACTION * period:
                 continue  # a live camera streams faster than we keep frames: drop this one
-            next_keep = max(next_keep + period, time.monotonic() - period)
+            last_kept = wall
             self._keep(frame)
+        if self._cap is not None:  # stopped: the thread that reads releases
+            self._cap.release()
+            self._cap = None
 
     def _keep(self, frame: np.ndarray) -> None:
         import cv2
 
         rgb = cv2.cvtColor(frame, cv2.COLOR_BGR2RGB) if frame.ndim == 3 else frame
-        image = CameraImage(self.now(), self.rectify(rgb), self.info)
+        arrived = self.now()
+        image = CameraImage(arrived - self.delay, self.rectify(rgb), self.info)
         with self.lock:
             self.image = image
             self.frames += 1
-            self.last_frame = image.stamp
+            self.last_frame = arrived
 
 
 class CameraError(Exception):

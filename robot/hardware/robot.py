@@ -1,4 +1,4 @@
-"""The real TurtleBot 2 behind the adapter contract: Kobuki base, RPLIDAR A1, UVC camera, on the wall clock.
+"""The real TurtleBot 2 behind the adapter contract: Kobuki base, RPLIDAR A1, camera, on the wall clock.
 
 ``open_robot("robot.yaml")`` opens every device the robot file names and
 returns a :class:`HardwareRobot` (a :class:`homing.robot.RobotAdapter`).
@@ -99,7 +99,7 @@ class HardwareRobot:
                 cal = check_calibration(c.info, c.info_at.file, c.info_at.line, c.info_at.col)
                 x, y, z, yaw = c.pose
                 mount = homogeneous(rot_z(yaw) @ R_BODY_FROM_OPTICAL, np.array([x, y, z]))
-                self.camera = UvcCamera(c.source, cal, mount, now, c.rate)
+                self.camera = UvcCamera(c.source, cal, mount, now, c.rate, delay=c.delay)
                 try:
                     self.camera.open()
                 except CameraError as err:

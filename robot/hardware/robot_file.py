@@ -18,10 +18,11 @@ relative to the robot file's folder. Example (the bundled
       pose: [0.0, 0.0, 0.0]       # laser in base_link: x [m], y [m], yaw [rad]
       range_min: 0.15             # [m]
       range_max: 6.0              # [m]
-    camera:                       # optional: UVC camera through OpenCV
-      source: 0                   # device index (/dev/video0), device path, or a video file
+    camera:                       # optional: a camera through OpenCV
+      source: 0                   # device index (/dev/video0), device path, stream URL, or a video file
       info: xtion_rgb.yaml        # ROS camera_info YAML
       rate: 5                     # [Hz]
+      delay: 0.0                  # [s] capture-to-arrival latency, taken off each frame's stamp
       pose: [0.10, 0.0, 0.30, 0.0]  # optical centre x, y, z [m] in base_link, and yaw [rad]; level
     computer_battery: /sys/class/power_supply/BAT0  # optional: the laptop's Linux power_supply
 """
@@ -31,6 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from homing.robot.hardware.camera import is_url
 from homing.robot.turtlebot import LIDAR_RANGE_MAX, LIDAR_RANGE_MIN, WHEEL_RADIUS, WHEEL_SEPARATION
 from homing.robot.types import Pose2
 
@@ -77,6 +79,7 @@ class CameraConfig:
     info_at: Where
     rate: float = 5.0  # [Hz]
     pose: tuple[float, float, float, float] = (0.10, 0.0, 0.30, 0.0)  # x, y, z [m], yaw [rad]
+    delay: float = 0.0  # [s] taken off each frame's arrival time
 
 
 @dataclass(frozen=True)
@@ -131,15 +134,16 @@ def load_robot(path: str | Path) -> RobotConfig:
     camera = None
     if top.has("camera"):
         c = top.section("camera")
-        c.only(("source", "info", "rate", "pose"))
+        c.only(("source", "info", "rate", "pose", "delay"))
         raw = c.raw("source")
         if isinstance(raw, bool) or not isinstance(raw, (int, str)) or raw == "":
-            raise c.error("source", f"'source' must be a device index or a path, not {raw!r}")
-        source: int | str = raw if isinstance(raw, int) else _path(folder, raw)
+            raise c.error("source", f"'source' must be a device index, a path or a URL, not {raw!r}")
+        source: int | str = raw if isinstance(raw, int) or is_url(raw) else _path(folder, raw)
         camera = CameraConfig(
             source, Path(_path(folder, c.string("info"))), _where(c, "source"), _where(c, "info"),
             c.number("rate", 5.0, positive=True, hi=60.0),
             c.vector("pose", 4) if c.has("pose") else (0.10, 0.0, 0.30, 0.0),  # type: ignore[arg-type]
+            c.number("delay", 0.0, lo=0.0, hi=1.0),
         )  # fmt: skip
 
     battery = None

@@ -30,8 +30,8 @@ from homing.robot.turtlebot import LIDAR_RANGE_MAX, LIDAR_RANGE_MIN
 from homing.robot.types import Pose2, Scan
 
 SILENCE = 1.0  # [s] more than five revolutions without a byte: the lidar is lost
-REPLY_TIMEOUT = 1.0  # [s] for GET_HEALTH's answer
-HANDSHAKE_TRIES = 3
+REPLY_TIMEOUT = 0.3  # [s] for GET_HEALTH's answer (the A1 answers within milliseconds; a cut reply is asked again)
+HANDSHAKE_TIME = 3.0  # [s] ask for the health again until this long has passed (a noisy line garbles replies)
 
 
 class LidarError(DeviceError):
@@ -72,17 +72,17 @@ class RPLidar(SerialDevice):
             self.assembler._nodes.clear()
 
     def _handshake(self, ser: serial.Serial) -> tuple[int, int]:
-        """STOP, flush, GET_HEALTH; tried HANDSHAKE_TRIES times (a noisy line can garble one reply)."""
-        for attempt in range(HANDSHAKE_TRIES):
+        """STOP, flush, GET_HEALTH; asked again for HANDSHAKE_TIME seconds (a noisy line can garble replies)."""
+        deadline = time.monotonic() + HANDSHAKE_TIME
+        while True:
             ser.write(rp.request(rp.STOP))
             time.sleep(0.002)
             ser.reset_input_buffer()
             try:
                 return self._health(ser)
             except LidarError:
-                if attempt == HANDSHAKE_TRIES - 1:
+                if time.monotonic() >= deadline:
                     raise
-        raise AssertionError("unreachable")
 
     def _health(self, ser: serial.Serial) -> tuple[int, int]:
         ser.write(rp.request(rp.GET_HEALTH))

@@ -81,17 +81,59 @@ _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _constru
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _construct_sequence)
 
 
+_CLOSERS = {"[": "]", "{": "}", "'": "'", '"': '"'}
+# Problems that mean "the parser reached the end of what it could read without the closing bracket or quote".
+_UNCLOSED = ("expected ',' or ']'", "expected ',' or '}'", "end of stream", "<stream end>")
+
+
 def loads(text: str, file: str | Path = "<string>") -> Any:
-    """Parse YAML text; a syntax error raises :class:`UserError` at its position."""
+    """Parse YAML text; a syntax error raises :class:`UserError` at its position.
+
+    A bracket, brace or quote that is never closed is reported where it
+    opens — where a person looks for the mistake — with the place the
+    parser gave up (often the end of the file) in the message.
+    """
     try:
         return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark or err.context_mark
         line, col = (mark.line + 1, mark.column + 1) if mark is not None else (0, 0)
         problem = err.problem or err.context or "invalid YAML"
+        opener = _unclosed(text, err) if any(u in problem for u in _UNCLOSED) else None
+        if opener is not None:
+            char, (oline, ocol) = opener
+            raise UserError(f"invalid YAML: this {char!r} is never closed (no matching {_CLOSERS[char]!r}; the parser "
+                            f"gave up at line {line}, column {col}: {problem})", file, oline, ocol) from None
         raise UserError(f"invalid YAML: {problem}", file, line, col) from None
     except yaml.YAMLError as err:
         raise UserError(f"invalid YAML: {err}", file) from None
+
+
+def _unclosed(text: str, err: yaml.MarkedYAMLError) -> tuple[str, tuple[int, int]] | None:
+    """The innermost bracket, brace or quote still open where parsing failed, and its (line, col); else None."""
+    context = err.context or ""
+    if "quoted scalar" in context and err.context_mark is not None:
+        m = err.context_mark
+        quote = text.splitlines()[m.line][m.column] if m.line < len(text.splitlines()) else '"'
+        return (quote if quote in "'\"" else '"'), (m.line + 1, m.column + 1)
+    stack: list[tuple[str, tuple[int, int]]] = []
+    try:
+        for token in yaml.scan(text, Loader=yaml.SafeLoader):
+            if isinstance(token, (yaml.FlowSequenceStartToken, yaml.FlowMappingStartToken)):
+                m = token.start_mark
+                stack.append(("[" if isinstance(token, yaml.FlowSequenceStartToken) else "{", (m.line + 1, m.column + 1)))
+            elif isinstance(token, (yaml.FlowSequenceEndToken, yaml.FlowMappingEndToken)) and stack:
+                if stack[-1][0] != ("[" if isinstance(token, yaml.FlowSequenceEndToken) else "{"):
+                    break  # a ']' where a '}' was due: the '{' is the one never closed
+                stack.pop()
+    except yaml.YAMLError:
+        pass
+    if not stack:
+        return None
+    problem = err.problem_mark
+    if problem is not None:  # openers before the place the parser stopped
+        stack = [o for o in stack if o[1] <= (problem.line + 1, problem.column + 1)]
+    return stack[-1] if stack else None
 
 
 def load(path: str | Path) -> Any:

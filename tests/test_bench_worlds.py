@@ -1,0 +1,49 @@
+"""Benchmarks find the public floor plans from any working directory, and say where they looked when they find none."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from homing.benchmarks.common import find_plans, plan_folders
+
+
+def test_homing_worlds_is_searched_first(floor_plans: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("HOMING_WORLDS", str(floor_plans))
+    assert plan_folders()[0] == floor_plans.resolve()
+    found = find_plans()
+    assert found == {n: floor_plans.resolve() / f"{n}.yaml" for n in ("corridor", "loop", "room", "room_with_corner")}
+
+
+def test_shared_worlds_beside_the_working_directory(floor_plans: Path, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("HOMING_WORLDS", raising=False)
+    (tmp_path / "shared" / "worlds").mkdir(parents=True)
+    for f in ("loop.yaml", "loop.pgm"):
+        (tmp_path / "shared" / "worlds" / f).write_bytes((floor_plans / f).read_bytes())
+    project = tmp_path / "project"
+    project.mkdir()
+    for cwd in (tmp_path, project):  # from above the project root and from the project root
+        monkeypatch.chdir(cwd)
+        assert find_plans(("loop",)) == {"loop": tmp_path.resolve() / "shared" / "worlds" / "loop.yaml"}
+
+
+def test_none_found_names_every_folder_searched(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    empty = [tmp_path / "a", tmp_path / "b"]
+    assert find_plans(("loop",), why="running in lab only", folders=empty) == {}
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert str(tmp_path / "a") in err and str(tmp_path / "b") in err and "HOMING_WORLDS" in err
+    assert "running in lab only" in err
+
+
+def test_bench_plan_uses_the_plans_from_another_directory(floor_plans: Path, tmp_path: Path) -> None:
+    env = {**os.environ, "HOMING_WORLDS": str(floor_plans)}
+    out = subprocess.run([sys.executable, "-m", "homing.missions.cli", "bench", "plan", "--pairs", "1",
+                          "--planners", "astar"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "4 maps × 1 pairs" in out.stdout

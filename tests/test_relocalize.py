@@ -1,0 +1,74 @@
+"""Global relocalisation: a scan is found again in a known map, and a symmetric room gives no answer, not a wrong one."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from homing.mapping.grid import OccupancyGrid
+from homing.mapping.grid_slam import GridSlam
+from homing.mapping.relocalize import relocalise
+from homing.robot import Odometry, Pose2, Twist2
+from homing.sim import SimRobot, load_world
+
+from tests.sim_helpers import box_room
+
+
+@pytest.fixture(scope="module")
+def lab():
+    return load_world("lab")
+
+
+def _scan_at(world, pose: Pose2, seed: int):
+    robot = SimRobot(world, seed=seed, camera=False, start=pose)
+    scan = robot.observe().scan
+    robot.close()
+    return scan
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_scan_is_found_anywhere_in_the_lab(lab, seed: int) -> None:
+    grid = OccupancyGrid.from_map_data(lab.map)  # the true plan as the robot's map (world frame)
+    rng = np.random.default_rng(seed)
+    free = np.argwhere(lab.reachable_free())
+    while True:
+        r, c = free[rng.integers(len(free))]
+        x = lab.map.origin[0] + (c + 0.5) * lab.map.resolution
+        y = lab.map.origin[1] + (r + 0.5) * lab.map.resolution
+        truth = Pose2(float(x), float(y), float(rng.uniform(-math.pi, math.pi)))
+        scan = _scan_at(lab, truth, seed)
+        if int(scan.valid().sum()) > 200:  # not pressed into a corner
+            break
+    found = relocalise(grid, scan.points())
+    assert found.pose is not None, found.reason
+    assert found.pose.distance_to(truth) < 0.10
+    assert abs(math.degrees(math.remainder(found.pose.theta - truth.theta, 2 * math.pi))) < 3.0
+
+
+def test_a_square_room_is_ambiguous_and_says_so(tmp_path) -> None:
+    room = load_world(box_room(tmp_path, 5.0, 5.0))
+    grid = OccupancyGrid.from_map_data(room.map)
+    scan = _scan_at(room, Pose2(2.5, 2.5, 0.3), seed=1)  # the centre: four turns of the room fit alike
+    found = relocalise(grid, scan.points())
+    assert found.pose is None and "ambiguous" in found.reason
+    assert found.runner_up >= 0.9 * found.fit
+
+
+def test_grid_slam_refuses_to_draw_a_kidnapped_scan_and_finds_itself_again(lab) -> None:
+    # Map the lab's true plan, track a robot at one pose, then teleport it: odometry does not notice.
+    slam = GridSlam(grid=OccupancyGrid.from_map_data(lab.map))
+    here, there = Pose2(1.5, 2.0, 0.5), Pose2(8.0, 6.5, -2.0)
+    slam.set_pose(here, Pose2())
+    before = slam.grid.logodds.copy()
+    t = 0.0
+    for pose in [here] * 4 + [there] * 30:  # a scan is due every second when the robot stands still
+        t += 0.2
+        scan = _scan_at(lab, pose, seed=int(t * 10))
+        scan = type(scan)(t, scan.angle_min, scan.angle_increment, scan.ranges, scan.range_min, scan.range_max,
+                          scan.laser_pose)
+        slam.update(Odometry(t, Pose2(), Twist2()), scan)
+    assert slam.times_lost == 1 and not slam.lost, slam.last_relocalisation
+    assert slam.pose.distance_to(there) < 0.10
+    changed = np.abs(slam.grid.logodds - before) > 1.0
+    assert changed.mean() < 0.01  # the map was not redrawn at the wrong place
