@@ -88,12 +88,14 @@ class GridSlamService:
         snap.grid = self.slam.grid.copy()
 
     def restore(self, snap: Any, obs: Observation) -> None:
-        """Start from a snapshot's grid: on the dock, at the dock's pose; anywhere else, lost (it finds itself)."""
+        """Start from a snapshot's grid: on the dock at the dock's pose, elsewhere at ``snap.pose`` or lost (it finds itself)."""
         if snap.grid is None:
             return
         self.slam.adopt(snap.grid)
         if obs.battery.on_dock and snap.dock is not None:
             self.slam.set_pose(snap.dock, obs.odom.pose)
+        elif snap.pose is not None:
+            self.slam.set_pose(snap.pose, obs.odom.pose)
         else:
             self.slam.lost = True
         self.published = self.slam.grid if self.publish_period == 0 else self.slam.grid.copy()

@@ -55,6 +55,7 @@ class Snapshot:
     landmarks: dict[int, tuple[Pose2, np.ndarray]] = field(default_factory=dict)  # tag id → (pose, (3, 3) cov)
     meta: dict[str, Any] = field(default_factory=dict)  # mission, world, seed: what the run was
     sim: dict[str, Any] | None = None  # the simulator's state (simulated robots only)
+    pose: Pose2 | None = None  # where the robot stands in map when it starts off the dock, if known (not saved)
 
 
 class RunDir:

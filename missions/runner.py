@@ -116,6 +116,7 @@ class Runner:
     resume: Any = None  # a homing.lifecycle.rundir.Snapshot to start from (--resume)
     meta: dict[str, Any] = field(default_factory=dict)  # what the run is (mission, world, seed), kept in snapshots
     snapshots: int = 0
+    timing: dict[str, float] | None = None  # set to {} to add up the wall time [s] of each part of a tick
 
     def __post_init__(self) -> None:
         # py_trees keeps one blackboard per process: a run starts from an empty one, not from the last run's values.
@@ -179,7 +180,11 @@ class Runner:
 
     def tick(self) -> Status:
         """One tick of ARCHITECTURE.md: observe, services, tree, command; the caller steps."""
+        timing = self.timing
+        lap = time.perf_counter() if timing is not None else 0.0
         obs = self.robot.observe()
+        if timing is not None:
+            lap = _lap(timing, "adapter: observe", lap)
         self.observation = obs
         self.now = float(obs.stamp)
         self.bb.set("/robot/observation", obs, overwrite=True)
@@ -191,6 +196,8 @@ class Runner:
                 rec.record_truth(self.truth(), obs.stamp)
         for service in self.services:
             service.update(obs)
+            if timing is not None:
+                lap = _lap(timing, f"service: {service.name}", lap)
         if rec is not None:
             rec.record_tags(obs.stamp, self.read(TAGS_KEY) or [])
         self.bb.set("/cmd_vel", None, overwrite=True)
@@ -198,8 +205,12 @@ class Runner:
         self.bb.set(SAVE_KEY, False, overwrite=True)
         self.tree.tick()
         self._sweep()
+        if timing is not None:
+            lap = _lap(timing, "tree: leaves and runner", lap)
         if self.run_dir is not None and self.read(SAVE_KEY):
             self.save_snapshot()
+            if timing is not None:
+                lap = _lap(timing, "run directory", lap)
         cmd = self.bb.get("/cmd_vel")
         self.last_command = self.robot.command(cmd.v, cmd.omega) if isinstance(cmd, Twist2) else self.robot.command(0.0, 0.0)
         if rec is not None:
@@ -228,7 +239,12 @@ class Runner:
                     break
                 if self._stop_requested:
                     break
-                self.robot.step(self.next_step())
+                if self.timing is not None:
+                    lap = time.perf_counter()
+                    self.robot.step(self.next_step())
+                    _lap(self.timing, "adapter: step (simulation)", lap)
+                else:
+                    self.robot.step(self.next_step())
                 self._pace()
         except KeyboardInterrupt:
             reason = "interrupted"
@@ -311,6 +327,13 @@ class Runner:
             return self.bb.get(key)
         except KeyError:
             return None
+
+
+def _lap(timing: dict[str, float], part: str, since: float) -> float:
+    """Add the wall time since ``since`` to ``timing[part]``; return now (the next part's start)."""
+    now = time.perf_counter()
+    timing[part] = timing.get(part, 0.0) + (now - since)
+    return now
 
 
 class _ChangeVisitor(py_trees.visitors.VisitorBase):
