@@ -18,6 +18,13 @@ so most ticks cost a dictionary lookup), and the service writes:
 - ``/map/localized``: False while tracking has lost the robot (a kidnap) and
   the scans are looked for in the whole map (:mod:`homing.mapping.relocalize`).
 
+The dock anchors the pose: a robot charging on its dock stands at the docked
+pose the navigation service knows (``/nav/dock``). When the pose disagrees
+with it by more than ``DOCK_ANCHOR`` the robot, not the dock, has moved in
+the map (tracking slid along a corridor while the wheels slipped; IR docking
+does not need the map to be right), so the pose is set back to the dock. A
+smaller difference is the map's own drift, which navigation follows.
+
 ``map`` is the ``odom`` frame at the first scan. When ``tag_slam`` runs after
 this service in the same mission, its keys override these (it owns the grid).
 Do not use ``use_matcher: false`` other than as a baseline: the grid then
@@ -29,13 +36,16 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from homing.behaviours.keys import GRID_KEY, LOCALIZED_KEY, MAP_TO_ODOM_KEY, POSE_KEY
+from homing.behaviours.keys import DOCK_KEY, GRID_KEY, LOCALIZED_KEY, MAP_TO_ODOM_KEY, POSE_KEY
 from homing.behaviours.registry import Param, register_service
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
-from homing.robot import Observation, RobotAdapter
+from homing.robot import Observation, Pose2, RobotAdapter
+from homing.robot.frames import wrap_angle
+from py_trees.common import Access
 
 PUBLISH_PERIOD = 1.0  # [s] between /map/grid snapshots
+DOCK_ANCHOR = (0.3, math.radians(15.0))  # [m, rad] a docked pose this far from the known dock is reset to it
 
 
 @register_service(
@@ -65,10 +75,12 @@ class GridSlamService:
         self.published: OccupancyGrid = self.slam.grid if publish_period == 0 else self.slam.grid.copy()
         self.bb: Any = None
         self.scans_fused = 0
+        self.anchored = 0  # times the pose was set back to the dock
         self._next_publish = -math.inf
 
     def setup(self, robot: RobotAdapter, blackboard: Any) -> None:
         self.bb = blackboard
+        blackboard.register_key(key=DOCK_KEY, access=Access.READ)
         blackboard.set(GRID_KEY, self.published, overwrite=True)
 
     def update(self, obs: Observation) -> None:
@@ -78,10 +90,23 @@ class GridSlamService:
             if self.publish_period > 0 and obs.stamp >= self._next_publish:
                 self._next_publish = obs.stamp + self.publish_period
                 self.published = self.slam.grid.copy()
+        if obs.battery.on_dock:
+            self._anchor(obs)
         self.bb.set(GRID_KEY, self.published, overwrite=True)
         self.bb.set(POSE_KEY, self.slam.pose, overwrite=True)
         self.bb.set(MAP_TO_ODOM_KEY, self.slam.map_to_odom, overwrite=True)
         self.bb.set(LOCALIZED_KEY, not self.slam.lost, overwrite=True)
+
+    def _anchor(self, obs: Observation) -> None:
+        """On the dock, far from where the dock is known to be: the robot stands on the dock (see module doc)."""
+        dock = self.bb.get(DOCK_KEY) if self.bb.exists(DOCK_KEY) else None
+        if not isinstance(dock, Pose2):
+            return
+        pose = self.slam.pose
+        if (pose.distance_to(dock) > DOCK_ANCHOR[0] or abs(wrap_angle(pose.theta - dock.theta)) > DOCK_ANCHOR[1]
+                or self.slam.lost):
+            self.slam.set_pose(dock, obs.odom.pose)
+            self.anchored += 1
 
     def snapshot(self, snap: Any) -> None:
         """Keep the grid in a run directory's snapshot (:mod:`homing.lifecycle.rundir`)."""

@@ -46,6 +46,7 @@ REBUILD_SHIFT = 0.03  # [m] a keyframe moved this far since drawn → rebuild th
 REBUILD_PERIOD = 5.0  # [s] adapter time between checks for a rebuild
 REBUILD_BATCH = 25  # scans drawn into the grid being rebuilt per tick
 TOUR_GOAL_KEY = "/tag_tour/goal"
+LANDMARKS_PERIOD = 2.0  # [s] tags-only mode: the tags' estimates are published at most this often
 
 
 @register_service(
@@ -73,7 +74,7 @@ class TagSlamService:
     def __init__(self, tag_size: float = 0.16, dock_tag: int = 0, keyframe_distance: float = 0.25,
                  keyframe_angle: float = 0.35, robust: str = "cauchy", max_range: float = 3.0,
                  resolution: float = 0.05, grid: bool = True, image_rate: float = 0.0) -> None:
-        from homing.mapping.landmark_slam import LandmarkSlam, SlamConfig
+        from homing.mapping.landmark_slam import CLOSURE_RADIUS, LandmarkSlam, SlamConfig
         from homing.perception.apriltag import TagDetector, TagFilter
         from homing.perception.tag_wall import TagPerception
 
@@ -82,6 +83,9 @@ class TagSlamService:
         self.config = SlamConfig(
             keyframe_distance=keyframe_distance, keyframe_angle=keyframe_angle, robust=robust,
             anchor_tag=None if dock_tag < 0 or not grid else dock_tag,
+            # Tags only: the grid's mapper keeps the headings consistent (the keyframes are tied to its poses),
+            # so the lidar closures would only cost time.
+            closure_radius=CLOSURE_RADIUS if grid else 0.0,
         )
         self.slam = LandmarkSlam(self.config)
         self.owns_grid = grid
@@ -89,6 +93,8 @@ class TagSlamService:
             raise ValueError(f"image_rate must be ≥ 0 Hz, not {image_rate}")
         self.image_period = 1.0 / image_rate if image_rate > 0 else 0.0  # [s]
         self._next_detect = -math.inf
+        self._published_updates = -1
+        self._next_landmarks = -math.inf
         self.sessions = 1
         self._was_docked = False
         self.resolution = resolution
@@ -143,7 +149,10 @@ class TagSlamService:
             self.slam.set_start_frame(map_to_odom)  # the first keyframe starts where the grid's mapper has it
         self.slam.update(obs.stamp, obs.odom.pose, obs.scan, tags, matched=pose)
         self.bb.set(TAGS_KEY, tags, overwrite=True)
-        self.bb.set(LANDMARKS_KEY, self.slam.landmarks(), overwrite=True)
+        if self.slam.updates != self._published_updates and obs.stamp >= self._next_landmarks:
+            # The tags' estimates are read back from iSAM2 (a call per tag): at most every LANDMARKS_PERIOD.
+            self._published_updates, self._next_landmarks = self.slam.updates, obs.stamp + LANDMARKS_PERIOD
+            self.bb.set(LANDMARKS_KEY, self.slam.landmarks(), overwrite=True)
 
     def landmark_estimates(self) -> dict[int, tuple[Pose2, Any]]:
         """Tag id → (pose in map, (3, 3) marginal covariance): the state a run directory keeps."""

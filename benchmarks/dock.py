@@ -86,7 +86,7 @@ def mission_file(folder: Path, variant: str, dock_tag: int) -> Path:
 
     body = RECOVERY if variant == "recovery" else NO_RECOVERY
     text = (f"mission: dock_{variant}\nrate: 5\ninclude: [{resolve_mission('persistent')}]\n"
-            f"services:\n  - grid_slam\n  - tag_slam: {{grid: false, dock_tag: {dock_tag}, image_rate: 1 Hz}}\n"
+            f"services:\n  - grid_slam\n  - tag_slam: {{grid: false, dock_tag: {dock_tag}, image_rate: 0.5 Hz}}\n"
             f"  - navigation: {{planner: astar}}\n  - energy\nparams: {{dock_tag: {dock_tag}}}\ntree:\n{body}")
     path = folder / f"dock_{variant}.yaml"
     path.write_text(text)

@@ -227,7 +227,9 @@ class LandmarkSlam:
             gtsam.noiseModel.Diagonal.Sigmas(np.array(SCAN_MATCH_SIGMA)))
         self._turn = 0.0  # [rad] absolute odometry turn since the last keyframe
         self._latest_map_pose = Pose2()
-        self._landmarks: dict[int, Pose2] = {}
+        self._landmarks: dict[int, Pose2] = {}  # read back from iSAM2 lazily (see landmarks())
+        self._landmarks_stale = False
+        self.updates = 0  # iSAM2 updates so far: a reader can tell whether anything moved
         self._map_to_odom = map_to_odom or Pose2()
         self._priors = dict(landmark_priors or {})
         self._guesses: list[Pose2] = []  # each keyframe's map pose as estimated when it was added
@@ -403,8 +405,8 @@ class LandmarkSlam:
         self.isam.update(graph, values)
         kf = self.keyframes[-1]
         self._latest_map_pose = from_gtsam(self.isam.calculateEstimatePose2(X(kf.index)))
-        for tag_id in self.landmark_ids:
-            self._landmarks[tag_id] = from_gtsam(self.isam.calculateEstimatePose2(L(tag_id)))
+        self._landmarks_stale = True  # every tag may have moved: read back when asked, not after every update
+        self.updates += 1
         self._map_to_odom = self._latest_map_pose.compose(kf.odom.inverse())
         self.update_ms.append(1e3 * (time.perf_counter() - t0))
 
@@ -421,6 +423,10 @@ class LandmarkSlam:
 
     def landmarks(self) -> dict[int, Pose2]:
         """Tag id → optimised tag pose (centre, face heading) in ``map``."""
+        if self._landmarks_stale:
+            for tag_id in self.landmark_ids:
+                self._landmarks[tag_id] = from_gtsam(self.isam.calculateEstimatePose2(L(tag_id)))
+            self._landmarks_stale = False
         return dict(self._landmarks)
 
     def keyframe_poses(self) -> list[Pose2]:
@@ -430,7 +436,7 @@ class LandmarkSlam:
 
     def landmark_estimates(self) -> dict[int, tuple[Pose2, np.ndarray]]:
         """Tag id → (pose in ``map``, (3, 3) marginal covariance): what a next session starts from (costly)."""
-        return {i: (p, self.landmark_covariance(i)) for i, p in self._landmarks.items()}
+        return {i: (p, self.landmark_covariance(i)) for i, p in self.landmarks().items()}
 
     def landmark_covariance(self, tag_id: int) -> np.ndarray:
         """(3, 3) marginal covariance of tag ``tag_id`` in its own frame (costly: for reports, not ticks)."""

@@ -47,6 +47,8 @@ from homing.missions.compiler import CompiledMission
 from homing.robot import Observation, RobotAdapter, Twist2
 from py_trees.common import Access, Status
 
+from homing.signals import stop_requested
+
 UNTIL_SLACK = 1e-6  # [s] float steps of 1/rate must not cost an extra tick at the limit
 STOP_REASONS = ("success", "failure", "time_limit", "interrupted")
 MAX_IDLE = 60.0  # [s] longest single step the runner takes on a leaf's word that nothing needs a tick
@@ -237,8 +239,8 @@ class Runner:
                 if status in (Status.SUCCESS, Status.FAILURE):
                     reason = status.value.lower()
                     break
-                if self._stop_requested:
-                    break
+                if self._stop_requested or stop_requested():
+                    break  # asked to stop (request_stop, or a signal whose exception was swallowed on its way)
                 if self.timing is not None:
                     lap = time.perf_counter()
                     self.robot.step(self.next_step())

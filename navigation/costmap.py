@@ -133,6 +133,8 @@ class Costmap:
         self._grid: tuple[np.ndarray, float, tuple[float, float]] | None = None  # the last static grid as given
         self._keepout_mask: np.ndarray | None = None
         self._keepout_key: tuple[object, ...] | None = None
+        self._lut = np.zeros(0, dtype=np.uint8)
+        self._lut_key: tuple[float, ...] | None = None
 
     # -- geometry -----------------------------------------------------------------
     @property
@@ -353,34 +355,48 @@ class Costmap:
         """(clearance [m] float32, cost uint8) over the cells [r0:r1, c0:c1] from the layers there."""
         window = (slice(r0, r1), slice(c0, c1))
         static = self.static[window]
-        lethal = (static == LETHAL) | self.obstacles[window] | self._unseen_layer()[window]
+        lethal = (static == LETHAL) | self.obstacles[window] | self._unseen_layer(window)
         if lethal.any():
-            # cv2's precise L2 transform is the exact Euclidean distance to the nearest zero pixel.
+            # cv2's precise L2 transform is the exact Euclidean distance to the nearest zero pixel, so the
+            # squared distance in cells is an integer: the cost is a table lookup, not an exponential per cell.
             free = np.where(lethal, 0, 255).astype(np.uint8)
-            d = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(np.float32)
-            d *= self.resolution
+            cells = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+            lut = self._cost_table()
+            cost = lut[np.minimum(np.rint(cells * cells), len(lut) - 1).astype(np.intp)]
+            d = cells * np.float32(self.resolution)
         else:
             d = np.full(lethal.shape, np.inf, dtype=np.float32)
-        cost = inflation_cost(d, self.inscribed_radius, self.params.inflation_radius, self.params.cost_scaling_factor)
+            cost = np.zeros(lethal.shape, dtype=np.uint8)
         # Unknown cells stay unknown unless the robot would touch something there.
         cost[(static == NO_INFORMATION) & (cost < INSCRIBED)] = NO_INFORMATION
         return d, cost
 
 
-    def _unseen_layer(self) -> np.ndarray:
-        """(H, W) bool: keep-out zones (cached per geometry) and bumper marks."""
+    def _cost_table(self) -> np.ndarray:
+        """Cost by squared distance in cells (Nav2's inflation), cached for the costmap's parameters."""
+        key = (self.resolution, self.inscribed_radius, self.params.inflation_radius, self.params.cost_scaling_factor)
+        if self._lut_key != key:
+            n = int(math.ceil(self.params.inflation_radius / self.resolution)) + 2
+            d = np.sqrt(np.arange(n * n + 1, dtype=np.float64)) * self.resolution
+            self._lut = inflation_cost(d, *key[1:])
+            self._lut_key = key
+        return self._lut
+
+    def _unseen_layer(self, window: tuple[slice, slice]) -> np.ndarray:
+        """(h, w) bool over ``window``: keep-out zones (cached per geometry) and bumper marks."""
         key = (self.shape, self.resolution, self.origin)
         if self._keepout_key != key:
             self._keepout_mask = (rasterise_keepout(self.keepout, self.shape, self.resolution, self.origin)
                                   if self.keepout else np.zeros(self.shape, dtype=bool))
             self._keepout_key = key
         assert self._keepout_mask is not None
+        layer = self._keepout_mask[window]
         if not len(self.bumps):
-            return self._keepout_mask
-        layer = self._keepout_mask.copy()
-        rc = self.world_to_cell(self.bumps.points)
-        rc = rc[self.inside(rc)]
-        layer[rc[:, 0], rc[:, 1]] = True
+            return layer
+        layer = layer.copy()
+        rc = self.world_to_cell(self.bumps.points) - np.array([window[0].start, window[1].start])
+        ok = (rc[:, 0] >= 0) & (rc[:, 0] < layer.shape[0]) & (rc[:, 1] >= 0) & (rc[:, 1] < layer.shape[1])
+        layer[rc[ok, 0], rc[ok, 1]] = True
         return layer
 
 

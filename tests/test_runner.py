@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -13,6 +15,7 @@ from homing.missions.runner import Runner, RunResult, StatusChange, parse_durati
 from homing.robot import Observation
 from py_trees.common import Status
 
+from homing.signals import received, stop_on_signals, stop_requested
 from tests.conftest import REPO
 from tests.mission_fakes import FakeRobot
 
@@ -109,6 +112,27 @@ def test_ctrl_c_stops_robot_and_halts_tree(tmp_path: Path) -> None:
     assert result.reason == "interrupted" and result.ticks == 7
     assert robot.commands[-1][1:] == (0.0, 0.0)
     assert runner.mission.root.status == Status.INVALID
+
+
+def test_a_signal_whose_exception_is_swallowed_still_stops_the_run(tmp_path: Path) -> None:
+    # A stop signal's exception can land in code that swallows it (a library's clean-up, a callback from C):
+    # the runner polls for the signal as well, so the stop is never lost.
+    path = mission(tmp_path, "  Drive: {v: 0.3, seconds: 100}\n")
+    robot = FakeRobot()
+
+    def swallowed(runner: Runner) -> None:
+        if runner.ticks == 7:
+            try:
+                os.kill(os.getpid(), signal.SIGTERM)
+            except KeyboardInterrupt:
+                pass
+
+    with stop_on_signals():
+        result = Runner(compile_mission(path), robot, on_tick=swallowed).run()
+        assert received() == signal.SIGTERM
+    assert result.reason == "interrupted" and result.ticks == 7
+    assert robot.commands[-1][1:] == (0.0, 0.0)
+    assert not stop_requested()  # outside the block a stale signal stops nothing
 
 
 def test_battery_guard_preempts_and_rate_override(tmp_path: Path) -> None:

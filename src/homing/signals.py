@@ -23,6 +23,7 @@ from types import FrameType
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 _received: list[int] = []
+_active: list[bool] = []  # one entry per open stop_on_signals block
 
 
 class Interrupted(KeyboardInterrupt):
@@ -41,6 +42,16 @@ def _handler(signum: int, frame: FrameType | None) -> None:
 def received() -> int | None:
     """The first stop signal received inside :func:`stop_on_signals`, or None."""
     return _received[0] if _received else None
+
+
+def stop_requested() -> bool:
+    """Whether a stop signal has arrived inside the open :func:`stop_on_signals` block.
+
+    Loops poll this as well as catching :class:`Interrupted`: an exception raised
+    by the handler can be swallowed by code it lands in (a library's clean-up, a
+    callback from C), and a stop must never be lost.
+    """
+    return bool(_active) and bool(_received)
 
 
 def signal_name(signum: int | None) -> str:
@@ -70,8 +81,10 @@ def stop_on_signals(signums: tuple[int, ...] = STOP_SIGNALS) -> Iterator[None]:
                 previous[s] = signal.signal(s, _handler)
     except ValueError:  # not the main thread
         pass
+    _active.append(True)
     try:
         yield
     finally:
+        _active.pop()
         for s, old in previous.items():
             signal.signal(s, old)  # type: ignore[arg-type]

@@ -1,0 +1,70 @@
+"""The grid_slam service on the dock: a pose far from the known dock is set back to it; the map's drift is not."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import py_trees
+import pytest
+from homing.behaviours.grid_slam_service import DOCK_ANCHOR, GridSlamService
+from homing.behaviours.keys import DOCK_KEY
+from homing.robot import Pose2
+from homing.sim import SimRobot, load_world
+from py_trees.common import Access
+
+
+@pytest.fixture
+def docked() -> Iterator[tuple[SimRobot, GridSlamService, py_trees.blackboard.Client]]:
+    py_trees.blackboard.Blackboard.clear()
+    robot = SimRobot(load_world("lab"), seed=1)
+    service = GridSlamService()
+    board = py_trees.blackboard.Client(name="test:dock")
+    board.register_key(key=DOCK_KEY, access=Access.WRITE)
+    client = py_trees.blackboard.Client(name="service:grid_slam")
+    for key in GridSlamService.writes:
+        client.register_key(key=key, access=Access.WRITE)
+    service.setup(robot, client)
+    try:
+        yield robot, service, board
+    finally:
+        robot.close()
+
+
+def _tick(robot: SimRobot, service: GridSlamService, seconds: float) -> None:
+    for _ in range(int(round(seconds / 0.2))):
+        robot.step(0.2)
+        service.update(robot.observe())
+
+
+def test_a_robot_charging_far_from_the_known_dock_is_put_back_on_it(docked) -> None:
+    robot, service, board = docked
+    _tick(robot, service, 2.0)
+    obs = robot.observe()
+    assert obs.battery.on_dock  # the simulated robot starts on its charger
+    board.set(DOCK_KEY, Pose2(), overwrite=True)  # the dock is the map's origin
+    # Tracking slid 1.7 m down a corridor while the wheels slipped, then IR docking brought the robot home anyway.
+    service.slam.set_pose(Pose2(1.7, 0.1, 0.05), obs.odom.pose)
+    _tick(robot, service, 0.4)
+    pose = service.slam.pose
+    assert service.anchored == 1
+    assert math.hypot(pose.x, pose.y) < 0.02 and abs(pose.theta) < math.radians(1.0)
+
+
+def test_a_small_difference_is_the_maps_drift_and_is_left_alone(docked) -> None:
+    robot, service, board = docked
+    _tick(robot, service, 2.0)
+    board.set(DOCK_KEY, Pose2(), overwrite=True)
+    shifted = Pose2(DOCK_ANCHOR[0] / 2, 0.0, DOCK_ANCHOR[1] / 2)
+    service.slam.set_pose(shifted, robot.observe().odom.pose)
+    _tick(robot, service, 0.4)
+    assert service.anchored == 0
+    assert service.slam.pose.distance_to(shifted) < 0.02
+
+
+def test_without_a_known_dock_nothing_is_anchored(docked) -> None:
+    robot, service, _ = docked
+    _tick(robot, service, 1.0)
+    service.slam.set_pose(Pose2(1.7, 0.0, 0.0), robot.observe().odom.pose)
+    _tick(robot, service, 0.4)
+    assert service.anchored == 0 and service.slam.pose.x > 1.6
