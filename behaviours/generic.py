@@ -149,6 +149,12 @@ class Increment(HomingBehaviour):
         super().__init__(name)
         self.by = int(by)
 
+    def setup(self, **kwargs: Any) -> None:
+        """An unset counter starts at 0 (so the view shows it before its first count; a resumed one is kept)."""
+        super().setup(**kwargs)
+        if self.read(self.key) is None:
+            self.write(self.key, 0)
+
     def update(self) -> Status:
         value = self.read(self.key, 0)
         if not isinstance(value, int) or isinstance(value, bool):

@@ -303,7 +303,7 @@ class LiveView:
             out.append(Text("goal ", style="grey62").append(f"({f.goal.x:.2f}, {f.goal.y:.2f}){togo}", style="green"))
         if area is not None:
             rate = self.area.rate()
-            grow = f" · {rate:+.1f} m²/min" if rate is not None else ""
+            grow = f" · {round(rate, 1) + 0.0:+.1f} m²/min" if rate is not None else ""
             out.append(Text("mapped ", style="grey62").append(f"{area:.1f} m²{grow}"))
             spark = self.area.sparkline(max(4, width - 2))
             if spark:

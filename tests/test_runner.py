@@ -183,3 +183,13 @@ def test_cli_run_bad_until_is_a_user_error(tmp_path: Path) -> None:
         capture_output=True, text=True, timeout=60, cwd=REPO,
     )  # fmt: skip
     assert out.returncode == 2 and "Traceback" not in out.stderr and "wrong unit 'm'" in out.stderr
+
+
+def test_a_counter_reads_zero_before_its_first_count(tmp_path: Path) -> None:
+    # The persistent mission's dock cycles are shown from the start ("cycles 0"), not only after the first dock.
+    path = mission(tmp_path, "  sequence: [{Wait: 1 s}, {Increment: {key: /mission/cycles}}]\n")
+    runner = Runner(compile_mission(path), FakeRobot())
+    runner.setup()
+    assert runner.read("/mission/cycles") == 0
+    result = runner.run()
+    assert result.reason == "success" and runner.read("/mission/cycles") == 1
