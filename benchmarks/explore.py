@@ -192,9 +192,9 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
     )  # fmt: skip
 
 
-def _job(args: tuple[str, str, int, float, str | None]) -> RunResult:
+def _job(world: str, strategy: str, seed: int, minutes: float, folder: str | None) -> RunResult:
+    """One run of the sweep (the engine calls ``fn(*job)``)."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    world, strategy, seed, minutes, folder = args
     save = str(Path(folder) / f"{world_label(world)}_{strategy}_{seed}.yaml") if folder else None
     return run_one(world, strategy, seed, minutes, save_map=save)
 
@@ -280,9 +280,9 @@ def run(args: argparse.Namespace) -> int:
     engine = engine_from_args(args)
     worlds = world_specs(args.worlds)
     for w in worlds:
-        from homing.sim.world import resolve
+        from homing.sim.world import check_spec
 
-        resolve(w)  # a missing world is the user's mistake: say so before starting workers
+        check_spec(w)  # a missing world is the user's mistake: say so before starting workers
     if args.save_maps:
         Path(args.save_maps).mkdir(parents=True, exist_ok=True)
     jobs = [(w, s, seed, args.minutes, args.save_maps) for w in worlds for s in args.strategies
