@@ -31,7 +31,13 @@ same seed), then the median is reported.
 
 Worlds default to the bundled ``lab`` and the six public floor plans when
 found (``$HOMING_WORLDS``, or ``shared/worlds`` beside the working directory or
-its parent). Runs go to ``--workers`` processes, or to
+its parent), plus ``--generated`` N plans of each generated kind
+(:mod:`homing.sim.buildings`: ``office:1..N``, ``hospital:1..N``,
+``slam_office:1..N``), so the median is not decided by open halls. A second
+table gives the figures per plan kind (hall, loop, corridor, office,
+hospital, slam_office), with how often the robot said "done" while the map
+still had a frontier it could reach (``false done``) and its own coverage
+estimate when it ended. Runs go to ``--workers`` processes, or to
 a Ray cluster with ``--engine ray [--address ADDR]``
 (:mod:`homing.benchmarks.engine`: the same JSON for the same seeds; a run
 that fails is listed with its seed under ``failed``).
@@ -93,17 +99,31 @@ class RunResult:
     wall: float  # [s] real time of the run
     rtf: float  # adapter seconds per real second
     free_coverage: float = math.nan  # fraction of the reachable free area mapped free (misregistration counts)
+    estimate: float = math.nan  # the robot's own coverage estimate when it ended (nan: it did not end)
+    frontiers_left: int = -1  # frontiers the map says the robot could still reach when it ended (-1: did not end)
+    given_up: int = 0  # frontiers given up (narrower than the robot, blacklisted places)
 
 
-def world_specs(names: list[str] | None) -> list[str]:
-    """World specs to run: the given ones, or ``lab`` plus the public floor plans found."""
-    if names:
-        return names
-    return ["lab", *sorted(str(p) for p in find_plans(why="exploring lab only").values())]
+GENERATED = ("office", "hospital", "slam_office")  # homing.sim.buildings' kinds, run by --generated
+KIND_OF_PLAN = {"room": "hall", "corner": "hall", "lab": "hall", "loop": "loop", "loop_with_corridor": "loop",
+                "corridor": "corridor", "room_with_corner": "corridor"}  # the public blueprints' kinds
+
+
+def world_specs(names: list[str] | None, generated: int = 0) -> list[str]:
+    """World specs to run: the given ones, or ``lab`` plus the public floor plans found; plus ``generated`` plans
+    of each generated kind (seeds 1..N)."""
+    plans = list(names) if names else ["lab", *sorted(str(p) for p in find_plans(why="exploring lab only").values())]
+    return plans + [f"{kind}:{seed}" for kind in GENERATED for seed in range(1, generated + 1)]
 
 
 def world_label(spec: str) -> str:
     return Path(spec).stem if spec.endswith((".yaml", ".yml")) else spec
+
+
+def plan_kind(label: str) -> str:
+    """A world's kind for the per-kind table: hall, loop, corridor (the blueprints), office, hospital,
+    slam_office (generated), else the world's own name."""
+    return label.split(":")[0] if ":" in label else KIND_OF_PLAN.get(label, label)
 
 
 def session_efficiency(area95: float, t95: float, final_area: float, session: float) -> float:
@@ -182,6 +202,11 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
 
         save_grid(save_map, grid)
     steps = explore.explorer.goals_chosen if explore is not None and explore.explorer is not None else 0
+    estimate, left, given_up = math.nan, -1, 0
+    explorer = explore.explorer if explore is not None else None
+    if done and explorer is not None and explorer.report is not None:
+        estimate, left = explorer.report.coverage_estimate, len(explorer.report.reachable)
+        given_up = len(explorer.report.narrow) + len(set(explorer.given_up()))
     return RunResult(
         world=world_label(world_spec), strategy=strategy, seed=seed,
         efficiency=efficiency, area=cov.area, coverage=cov.coverage, free_coverage=cov.free_coverage,
@@ -189,6 +214,7 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
         area95=track.area95,
         done=done, bumps=int(track.bumps), nav_failures=len(explore.failures) if explore is not None else 0,
         goals=int(steps), agreement=float(np.float64(cov.agreement)), wall=result.wall, rtf=result.rtf,
+        estimate=estimate, frontiers_left=left, given_up=given_up,
     )  # fmt: skip
 
 
@@ -230,6 +256,8 @@ def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
     for r in results:
         groups.setdefault((r.world, r.strategy), []).append(r)
         groups.setdefault(("all", r.strategy), []).append(r)
+    for r in results:
+        groups.setdefault((f"kind:{plan_kind(r.world)}", r.strategy), []).append(r)
     for (world, strategy), runs in groups.items():
         def med(field: str, runs: list[RunResult] = runs) -> float:
             return _median([float(getattr(r, field)) for r in runs])
@@ -237,9 +265,16 @@ def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
         if world == "all":  # every paired run of every world
             r_near = _median([v for (w, s), vs in vs_near.items() if s == strategy for v in vs])
             r_lite = _median([v for (w, s), vs in vs_lite.items() if s == strategy for v in vs])
+        elif world.startswith("kind:"):  # every paired run of the worlds of that kind
+            kind = world[5:]
+            r_near = _median([v for (w, s), vs in vs_near.items() if s == strategy and plan_kind(w) == kind for v in vs])
+            r_lite = _median([v for (w, s), vs in vs_lite.items() if s == strategy and plan_kind(w) == kind for v in vs])
         else:
             r_near, r_lite = _median(vs_near.get((world, strategy), [])), _median(vs_lite.get((world, strategy), []))
         out.setdefault(world, {})[strategy] = {
+            "false_done": sum(r.done and r.frontiers_left > 0 for r in runs),
+            "done": sum(r.done for r in runs), "given_up": sum(r.given_up for r in runs),
+            "estimate": med("estimate"),
             "efficiency": med("efficiency"), "area": med("area"), "coverage": med("coverage"),
             "min_coverage": min(r.coverage for r in runs), "free_coverage": med("free_coverage"),
             "path_length": med("path_length"), "agreement": med("agreement"),
@@ -257,6 +292,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="bundled names or YAML paths (default: lab and the public floor plans found)")
     parser.add_argument("--strategies", nargs="+", default=list(STRATEGY_ORDER), metavar="NAME",
                         help=f"frontier strategies (default: all: {', '.join(STRATEGY_ORDER)})")
+    parser.add_argument("--generated", type=count, default=3,
+                        help=f"also run N generated plans of each kind ({', '.join(GENERATED)}; seeds 1..N)")
     parser.add_argument("--seeds", type=count, default=5, help="seeds per world and strategy (0..N-1)")
     parser.add_argument("--minutes", type=positive, default=30.0, help="simulated minutes per run (thesis: 30)")
     add_engine_arguments(parser)
@@ -278,7 +315,7 @@ def run(args: argparse.Namespace) -> int:
     if bad:
         raise UserError(f"unknown strategy {', '.join(bad)} (known: {', '.join(sorted(STRATEGIES))})")
     engine = engine_from_args(args)
-    worlds = world_specs(args.worlds)
+    worlds = world_specs(args.worlds, args.generated if not args.worlds else 0)
     for w in worlds:
         from homing.sim.world import check_spec
 
@@ -317,6 +354,17 @@ def run(args: argparse.Namespace) -> int:
         ["world", "strategy", "eff m²/s", "FD m", "PL m", "AE m²", "coverage", "min cov", "t95 s", "agree", "bumps",
          "×nearest", "×explore_lite"],
         rows,
+    )  # fmt: skip
+    kinds = sorted({plan_kind(r.world) for r in results})
+    print_table(
+        "Per plan kind (medians over every run of the kind; ratios paired run by run; false done: the robot said "
+        "done with frontiers it could reach left)",
+        ["kind", "strategy", "runs", "coverage", "min cov", "t95 s", "×nearest", "×explore_lite", "done",
+         "false done", "estimate"],
+        [[kind, strategy, s["runs"], s["coverage"], s["min_coverage"], s["t95"], s["ratio_vs_nearest"],
+          s["ratio_vs_explore_lite"], s["done"], s["false_done"], s["estimate"]]
+         for kind in [*kinds, "all"] for strategy in args.strategies
+         if (s := summary.get("all" if kind == "all" else f"kind:{kind}", {}).get(strategy)) is not None],
     )  # fmt: skip
     for f in failed:
         print(f"failed: {_job_label(tuple(f['job']))}: {f['error']}")
