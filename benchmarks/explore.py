@@ -205,7 +205,7 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
     estimate, left, given_up = math.nan, -1, 0
     explorer = explore.explorer if explore is not None else None
     if done and explorer is not None and explorer.report is not None:
-        estimate, left = explorer.report.coverage_estimate, len(explorer.report.reachable)
+        estimate, left = explorer.report.coverage_estimate, explorer.report.open
         given_up = len(explorer.report.narrow) + len(set(explorer.given_up()))
     return RunResult(
         world=world_label(world_spec), strategy=strategy, seed=seed,

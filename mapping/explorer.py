@@ -106,6 +106,7 @@ class Explorer:
         self.arrivals: list[tuple[float, float]] = []  # goals reached, (x, y) [m] in map
         self.report: FrontierReport | None = None  # the map's verdict at the last "no goal"
         self.cut_offs = 0  # "no goal" verdicts in a row with frontiers the costmap cuts off
+        self._declined: FrontierSite | None = None  # the site the current goal visits though the strategy declined it
         self.goals_chosen = 0
         self._best_distance = math.inf
         self._last_progress = 0.0
@@ -170,6 +171,7 @@ class Explorer:
                 assert choice is not None
             else:
                 self.cut_offs = 0
+                self._declined = None
             gx, gy = grid.cell_to_world(*choice.cell)
             new_goal = Pose2(float(gx), float(gy), math.atan2(float(gy) - pose.y, float(gx) - pose.x))
             if self.goal is None or self.goal.distance_to(new_goal) > 0.5 * grid.resolution:
@@ -186,14 +188,15 @@ class Explorer:
         """The strategy found no goal: ask the map (module doc). Returns the step to give, or None after setting
         ``self.choice`` to a frontier the strategy declined but the costmap reaches."""
         report = frontier_report(grid, (pose.x, pose.y), self.robot_radius)
-        self.report = report
         open_sites = [s for s in report.reachable
                       if not site_blacklisted(s, grid, self.blacklist, self.blacklist_radius)]
+        report = report.given_up(len(open_sites))
+        self.report = report
         if not open_sites or getattr(self.strategy, "ends_without_goal", False):
             return ExploreStep(None, True, True, None, report=report)
         ctx = self._context(grid, pose, distance)
         beside = _beside(distance, self.robot_radius, grid.resolution)
-        best: tuple[float, tuple[int, int]] | None = None
+        best: tuple[float, FrontierSite, tuple[int, int]] | None = None
         near_any = False
         for site in open_sites:
             d = beside[site.cells[:, 0], site.cells[:, 1]]
@@ -204,10 +207,11 @@ class Explorer:
                 continue
             cell = _stand_cell(distance, ctx.excluded, tuple(site.cells[i]), self.robot_radius, grid.resolution)
             if cell is not None and (best is None or d[i] < best[0]):
-                best = (float(d[i]), cell)
+                best = (float(d[i]), site, cell)
         if best is not None:
             self.cut_offs = 0
-            self.choice = GoalChoice(best[1], None, [], -best[0])
+            self.choice = GoalChoice(best[2], None, [], -best[0])
+            self._declined = best[1]  # visited once: given up on arrival if still there
             return None
         self.cut_offs += 1
         if self.cut_offs >= CUT_OFF_TRIES:
@@ -227,7 +231,10 @@ class Explorer:
             g = (self.goal.x, self.goal.y)
             visits = sum(math.dist(g, a) <= self.blacklist_radius for a in self.arrivals)
             self.arrivals.append(g)
-            if visits + 1 >= MAX_ARRIVALS:
+            if self._declined is not None:
+                # A site only the map's check wanted (too small for the strategy): one visit is its chance.
+                self._blacklist_site(self._declined, grid, "not_cleared")
+            elif visits + 1 >= MAX_ARRIVALS:
                 self._blacklist(*g, "not_cleared")
             return True
         cell = grid.world_to_cell(self.goal.x, self.goal.y)

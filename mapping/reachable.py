@@ -15,16 +15,23 @@ m-explore #26, #68). This module asks the map alone:
    component nearest to it;
 3. **reachable frontiers**: cells of (2) 8-adjacent to unknown space of at
    least ``MIN_UNKNOWN`` (a map's pinholes are not frontiers), grouped
-   8-connected, ``MIN_SITE`` long or more: places the robot can stand next
-   to the unknown;
+   8-connected, ``MIN_SITE`` long or more, from which the lidar would see at
+   least ``MIN_VIEW`` of unknown space (rays stopped by mapped walls:
+   :func:`homing.mapping.strategies.visible_unknown`) — so the unknown inside
+   a desk whose corner the lidar never outlined, walled in on every other
+   side, is not a frontier: places the robot can stand next to the unknown
+   and see into it;
 4. **narrow frontiers**: known-free cells 8-adjacent to such unknown space
    that no cell of (2) comes within the footprint's radius (plus a cell) of,
    grouped the same way: unknown seen only through a gap narrower than the
    robot (explore_lite #40, #52), given up at once and reported, never
    retried;
 5. the robot's own coverage estimate: known free area over known free area
-   plus the unknown area within ``VIEW`` of a frontier still open (what the
-   lidar would still see from there), so it reads 100 % on a closed map.
+   plus what is still unseen behind every frontier left (reachable, given up
+   or narrow): the unknown area the lidar would see from it within ``VIEW``,
+   but no more than the frontier's length times ``VIEW`` (unknown space
+   behind an unmapped wall face is not all building). It reads 100 % on a
+   closed map.
 
 Grids are map_server views ((H, W) int8, FREE 0 / OCCUPIED 100 / UNKNOWN −1,
 row 0 at the lowest y); positions are metres in the ``map`` frame.
@@ -39,6 +46,7 @@ import cv2
 import numpy as np
 from homing.mapping.frontier import OCCUPIED_AT
 from homing.mapping.grid import OccupancyGrid
+from homing.mapping.strategies import VIEW_RAYS, visible_unknown
 from homing.robot.turtlebot import FOOTPRINT_RADIUS
 
 from homing.map_server import FREE, UNKNOWN
@@ -47,6 +55,8 @@ SEED_RADIUS = 0.6  # [m] fitting cells this close to the robot are where it is (
 MIN_UNKNOWN = 0.05  # [m²] unknown pockets smaller than this (pinholes between rays) are not frontiers
 MIN_SITE = 0.25  # [m] frontier sites shorter than this are noise
 VIEW = 3.0  # [m] unknown this close to an open frontier counts as still to be seen (half the lidar's range)
+MIN_VIEW = 0.5  # [m²] unknown area the lidar must be able to see from a site for it to be a frontier
+VIEW_SAMPLES = 12  # cells of a site the view is cast from (evenly spaced)
 
 
 @dataclass(frozen=True)
@@ -57,6 +67,7 @@ class FrontierSite:
     y: float
     length: float
     cells: np.ndarray = field(repr=False, compare=False)
+    view: float = 0.0  # [m²] unknown area the lidar would see from its best cell within VIEW
 
 
 @dataclass(frozen=True)
@@ -79,12 +90,22 @@ class FrontierReport:
     narrow: tuple[FrontierSite, ...]
     coverage_estimate: float
     free_area: float  # [m²]
+    left: int = -1  # reachable frontiers not given up (-1: not counted yet, all of ``reachable``)
+
+    @property
+    def open(self) -> int:
+        """Reachable frontiers still to go to (those the explorer has not given up)."""
+        return len(self.reachable) if self.left < 0 else self.left
+
+    def given_up(self, left: int) -> FrontierReport:
+        """The same report, knowing that only ``left`` of the reachable frontiers are still open."""
+        return FrontierReport(self.reachable, self.narrow, self.coverage_estimate, self.free_area, left)
 
     def summary(self, given_up: tuple[GivenUp, ...] = ()) -> str:
         """One line for a log or a feedback message."""
         gone = [*(GivenUp(s.x, s.y, s.length, "narrower_than_robot") for s in self.narrow), *given_up]
         text = (f"coverage estimate {self.coverage_estimate:.0%} of {self.free_area:.0f} m² free; "
-                f"{len(self.reachable)} reachable frontier(s) left")
+                f"{self.open} reachable frontier(s) left")
         if gone:
             text += "; given up: " + ", ".join(f"({g.x:.1f}, {g.y:.1f}) {g.length:.1f} m {g.reason}" for g in gone)
         return text
@@ -144,8 +165,13 @@ def _sites(mask: np.ndarray, grid: OccupancyGrid) -> list[FrontierSite]:
         length = len(rows) * grid.resolution
         if length < MIN_SITE:
             continue
+        step = max(1, len(rows) // VIEW_SAMPLES)
+        sample = np.column_stack([rows[::step], cols[::step]]).astype(np.int64)
+        view = float(visible_unknown(grid.data, grid.resolution, sample, VIEW, VIEW_RAYS).max())
+        if view < MIN_VIEW:
+            continue  # walled in: nothing the lidar could see from here
         x, y = grid.cell_to_world(float(rows.mean()), float(cols.mean()))
-        out.append(FrontierSite(float(x), float(y), length, np.column_stack([rows, cols]).astype(np.int64)))
+        out.append(FrontierSite(float(x), float(y), length, np.column_stack([rows, cols]).astype(np.int64), view))
     return out
 
 
@@ -165,13 +191,7 @@ def frontier_report(grid: OccupancyGrid, robot_xy: tuple[float, float],
     narrow_front = (g == FREE) & beside_unknown & ~near_region
     reachable, narrow = _sites(reach_front, grid), _sites(narrow_front, grid)
     free_area = float((g == FREE).sum()) * res**2
-    left = np.zeros(g.shape, np.uint8)
-    for s in reachable:
-        left[s.cells[:, 0], s.cells[:, 1]] = 1
-    unseen = 0.0
-    if left.any():
-        d = cv2.distanceTransform(1 - left, cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * res
-        unseen = float((unknown & (d <= VIEW)).sum()) * res**2
+    unseen = sum(min(s.view, s.length * VIEW) for s in (*reachable, *narrow))  # [m²]
     estimate = free_area / (free_area + unseen) if free_area > 0 else 0.0
     return FrontierReport(tuple(reachable), tuple(narrow), estimate, free_area)
 
