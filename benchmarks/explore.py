@@ -298,7 +298,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--minutes", type=positive, default=30.0, help="simulated minutes per run (thesis: 30)")
     add_engine_arguments(parser)
     parser.add_argument("--runs-json", metavar="PATH", type=output_file("--runs-json"),
-                        help="also write every run's figures to PATH")
+                        help="also write every run's figures to PATH (rewritten as each run finishes)")
     parser.add_argument("--from-runs", nargs="+", metavar="PATH",
                         help="run nothing: tabulate the runs saved by earlier --runs-json (e.g. baselines and "
                              "the default run separately), filtered by --worlds/--strategies when given")
@@ -330,9 +330,16 @@ def run(args: argparse.Namespace) -> int:
         results = load_runs(args.from_runs, args.strategies, [world_label(w) for w in worlds] if args.worlds else None)
         args.seeds = len({r.seed for r in results})
         jobs = []
+    finished = list(results)
+
+    def done(o: Any) -> None:
+        advance(_describe(o.result) if o.ok else f"{_job_label(o.job)}: failed")
+        if o.ok and args.runs_json:  # every finished run is kept, so a sweep stopped early keeps what it ran
+            finished.append(o.result)
+            write_json(args.runs_json, {"runs": [asdict(r) for r in finished]})
+
     with progress_bar("explore", len(jobs)) as advance:
-        outcomes = run_jobs(_job, jobs, engine, lambda o: advance(_describe(o.result) if o.ok else
-                                                                   f"{_job_label(o.job)}: failed"))
+        outcomes = run_jobs(_job, jobs, engine, done)
     results += [o.result for o in outcomes if o.ok]
     failed = failures_table(outcomes)
     results.sort(key=lambda r: (r.world, STRATEGY_ORDER.index(r.strategy) if r.strategy in STRATEGY_ORDER else 99, r.seed))
