@@ -21,6 +21,14 @@ goes on with the next one, as explore_lite does. A failure of the robot itself (
 then ends the leaf with FAILURE and that reason, so a mission's recovery node
 (clear costmap, spin, back up, wait) can act before it starts again; the
 explorer and its blacklist survive the restart.
+
+"Done" means done (:mod:`homing.mapping.explorer`, :mod:`homing.mapping.reachable`):
+SUCCESS only when the map has no frontier the robot's footprint could reach
+from where it is (frontiers behind gaps narrower than the robot and places
+given up are reported in the feedback message, with the robot's coverage
+estimate). Frontiers it could reach but the costmap cuts off end the leaf
+with FAILURE ``frontier_cut_off`` (or ``frontier_not_cleared``) for the
+recoveries; after a round of them those frontiers are given up.
 """
 
 from __future__ import annotations
@@ -46,7 +54,7 @@ from homing.behaviours.keys import (
 from homing.behaviours.motion import failure_reason
 from homing.behaviours.registry import Param, register
 from homing.mapping.explorer import REACH_RADIUS, Explorer, ExploreStep
-from homing.mapping.frontier import keep_reachable, smoothed_frontiers
+from homing.mapping.reachable import frontier_report
 from homing.mapping.strategies import DEFAULT_STRATEGY, STRATEGIES, make_strategy
 from homing.navigation.navigator import NavStatus
 from homing.navigation.planner import distance_map
@@ -142,7 +150,7 @@ class Explore(LongAction):
         elif self._nav_goal is not None and nav.status is NavStatus.FAILED:
             reason = failure_reason(nav.feedback.error)
             self.failures.append((now, reason, self._nav_goal))
-            explorer.report_failure()
+            explorer.report_failure(reason)
             self._nav_goal = None
             self._next_decision = -math.inf
             if reason not in GOAL_REASONS:
@@ -182,8 +190,16 @@ class Explore(LongAction):
             self.navigator.cancel()
             self._nav_goal = None
             self.write(GOAL_KEY, None)
-            self.feedback_message = "no frontier left"
+            self.feedback_message = f"explored: {self._explorer().end_message()}"
             return Status.SUCCESS
+        if step.stuck is not None:
+            # Frontiers the robot could reach on the map are cut off on the costmap: not "explored" — a failure
+            # the mission's recoveries (clear the costmap, spin, back up) act on.
+            self.navigator.cancel()
+            self._nav_goal = None
+            self.write(GOAL_KEY, None)
+            assert step.report is not None
+            return self.fail(step.stuck, f"{step.stuck.replace('_', ' ')}: {step.report.summary()}")
         if step.goal is None:
             self._nav_goal = None
             self.write(GOAL_KEY, None)
@@ -206,7 +222,8 @@ class Explore(LongAction):
 
 @register("NoFrontierLeft", kind="condition")
 class NoFrontierLeft(HomingBehaviour):
-    """SUCCESS when the map has no smoothed frontier segment the robot can reach (thesis algorithm 1), else FAILURE.
+    """SUCCESS when the map has no frontier the robot's footprint can reach from where it is
+    (:func:`homing.mapping.reachable.frontier_report`: the map itself, not the costmap), else FAILURE.
 
     Recomputed when the grid changes, at most every ``period`` [s]; between
     times it answers from the last result, so it is cheap in a guard ticked
@@ -232,11 +249,8 @@ class NoFrontierLeft(HomingBehaviour):
         key = (id(grid), int(grid.version))
         now = self.now()
         if key != self._key and now >= self._next:
-            distance = distance_field(nav, grid, pose)
-            if distance is not None:
-                self._key, self._next = key, now + self.period
-                segs = keep_reachable(smoothed_frontiers(grid.data, grid.resolution), distance)
-                self.segments = len(segs)
-                self._answer = not segs
-        self.feedback_message = "no frontier left" if self._answer else f"{self.segments} frontier segments"
+            self._key, self._next = key, now + self.period
+            self.segments = len(frontier_report(grid, (pose.x, pose.y)).reachable)
+            self._answer = not self.segments
+        self.feedback_message = "no frontier left" if self._answer else f"{self.segments} reachable frontier(s)"
         return Status.SUCCESS if self._answer else Status.FAILURE

@@ -31,7 +31,13 @@ same seed), then the median is reported.
 
 Worlds default to the bundled ``lab`` and the six public floor plans when
 found (``$HOMING_WORLDS``, or ``shared/worlds`` beside the working directory or
-its parent). Runs go to ``--workers`` processes, or to
+its parent), plus ``--generated`` N plans of each generated kind
+(:mod:`homing.sim.buildings`: ``office:1..N``, ``hospital:1..N``,
+``slam_office:1..N``), so the median is not decided by open halls. A second
+table gives the figures per plan kind (hall, loop, corridor, office,
+hospital, slam_office), with how often the robot said "done" while the map
+still had a frontier it could reach (``false done``) and its own coverage
+estimate when it ended. Runs go to ``--workers`` processes, or to
 a Ray cluster with ``--engine ray [--address ADDR]``
 (:mod:`homing.benchmarks.engine`: the same JSON for the same seeds; a run
 that fails is listed with its seed under ``failed``).
@@ -93,17 +99,31 @@ class RunResult:
     wall: float  # [s] real time of the run
     rtf: float  # adapter seconds per real second
     free_coverage: float = math.nan  # fraction of the reachable free area mapped free (misregistration counts)
+    estimate: float = math.nan  # the robot's own coverage estimate when it ended (nan: it did not end)
+    frontiers_left: int = -1  # frontiers the map says the robot could still reach when it ended (-1: did not end)
+    given_up: int = 0  # frontiers given up (narrower than the robot, blacklisted places)
 
 
-def world_specs(names: list[str] | None) -> list[str]:
-    """World specs to run: the given ones, or ``lab`` plus the public floor plans found."""
-    if names:
-        return names
-    return ["lab", *sorted(str(p) for p in find_plans(why="exploring lab only").values())]
+GENERATED = ("office", "hospital", "slam_office")  # homing.sim.buildings' kinds, run by --generated
+KIND_OF_PLAN = {"room": "hall", "corner": "hall", "lab": "hall", "loop": "loop", "loop_with_corridor": "loop",
+                "corridor": "corridor", "room_with_corner": "corridor"}  # the public blueprints' kinds
+
+
+def world_specs(names: list[str] | None, generated: int = 0) -> list[str]:
+    """World specs to run: the given ones, or ``lab`` plus the public floor plans found; plus ``generated`` plans
+    of each generated kind (seeds 1..N)."""
+    plans = list(names) if names else ["lab", *sorted(str(p) for p in find_plans(why="exploring lab only").values())]
+    return plans + [f"{kind}:{seed}" for kind in GENERATED for seed in range(1, generated + 1)]
 
 
 def world_label(spec: str) -> str:
     return Path(spec).stem if spec.endswith((".yaml", ".yml")) else spec
+
+
+def plan_kind(label: str) -> str:
+    """A world's kind for the per-kind table: hall, loop, corridor (the blueprints), office, hospital,
+    slam_office (generated), else the world's own name."""
+    return label.split(":")[0] if ":" in label else KIND_OF_PLAN.get(label, label)
 
 
 def session_efficiency(area95: float, t95: float, final_area: float, session: float) -> float:
@@ -182,6 +202,11 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
 
         save_grid(save_map, grid)
     steps = explore.explorer.goals_chosen if explore is not None and explore.explorer is not None else 0
+    estimate, left, given_up = math.nan, -1, 0
+    explorer = explore.explorer if explore is not None else None
+    if done and explorer is not None and explorer.report is not None:
+        estimate, left = explorer.report.coverage_estimate, explorer.report.open
+        given_up = len(explorer.report.narrow) + len(set(explorer.given_up()))
     return RunResult(
         world=world_label(world_spec), strategy=strategy, seed=seed,
         efficiency=efficiency, area=cov.area, coverage=cov.coverage, free_coverage=cov.free_coverage,
@@ -189,12 +214,13 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
         area95=track.area95,
         done=done, bumps=int(track.bumps), nav_failures=len(explore.failures) if explore is not None else 0,
         goals=int(steps), agreement=float(np.float64(cov.agreement)), wall=result.wall, rtf=result.rtf,
+        estimate=estimate, frontiers_left=left, given_up=given_up,
     )  # fmt: skip
 
 
-def _job(args: tuple[str, str, int, float, str | None]) -> RunResult:
+def _job(world: str, strategy: str, seed: int, minutes: float, folder: str | None) -> RunResult:
+    """One run of the sweep (the engine calls ``fn(*job)``)."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    world, strategy, seed, minutes, folder = args
     save = str(Path(folder) / f"{world_label(world)}_{strategy}_{seed}.yaml") if folder else None
     return run_one(world, strategy, seed, minutes, save_map=save)
 
@@ -230,6 +256,8 @@ def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
     for r in results:
         groups.setdefault((r.world, r.strategy), []).append(r)
         groups.setdefault(("all", r.strategy), []).append(r)
+    for r in results:
+        groups.setdefault((f"kind:{plan_kind(r.world)}", r.strategy), []).append(r)
     for (world, strategy), runs in groups.items():
         def med(field: str, runs: list[RunResult] = runs) -> float:
             return _median([float(getattr(r, field)) for r in runs])
@@ -237,9 +265,16 @@ def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
         if world == "all":  # every paired run of every world
             r_near = _median([v for (w, s), vs in vs_near.items() if s == strategy for v in vs])
             r_lite = _median([v for (w, s), vs in vs_lite.items() if s == strategy for v in vs])
+        elif world.startswith("kind:"):  # every paired run of the worlds of that kind
+            kind = world[5:]
+            r_near = _median([v for (w, s), vs in vs_near.items() if s == strategy and plan_kind(w) == kind for v in vs])
+            r_lite = _median([v for (w, s), vs in vs_lite.items() if s == strategy and plan_kind(w) == kind for v in vs])
         else:
             r_near, r_lite = _median(vs_near.get((world, strategy), [])), _median(vs_lite.get((world, strategy), []))
         out.setdefault(world, {})[strategy] = {
+            "false_done": sum(r.done and r.frontiers_left > 0 for r in runs),
+            "done": sum(r.done for r in runs), "given_up": sum(r.given_up for r in runs),
+            "estimate": med("estimate"),
             "efficiency": med("efficiency"), "area": med("area"), "coverage": med("coverage"),
             "min_coverage": min(r.coverage for r in runs), "free_coverage": med("free_coverage"),
             "path_length": med("path_length"), "agreement": med("agreement"),
@@ -257,11 +292,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="bundled names or YAML paths (default: lab and the public floor plans found)")
     parser.add_argument("--strategies", nargs="+", default=list(STRATEGY_ORDER), metavar="NAME",
                         help=f"frontier strategies (default: all: {', '.join(STRATEGY_ORDER)})")
+    parser.add_argument("--generated", type=count, default=3,
+                        help=f"also run N generated plans of each kind ({', '.join(GENERATED)}; seeds 1..N)")
     parser.add_argument("--seeds", type=count, default=5, help="seeds per world and strategy (0..N-1)")
     parser.add_argument("--minutes", type=positive, default=30.0, help="simulated minutes per run (thesis: 30)")
     add_engine_arguments(parser)
     parser.add_argument("--runs-json", metavar="PATH", type=output_file("--runs-json"),
-                        help="also write every run's figures to PATH")
+                        help="also write every run's figures to PATH (rewritten as each run finishes)")
     parser.add_argument("--from-runs", nargs="+", metavar="PATH",
                         help="run nothing: tabulate the runs saved by earlier --runs-json (e.g. baselines and "
                              "the default run separately), filtered by --worlds/--strategies when given")
@@ -278,11 +315,11 @@ def run(args: argparse.Namespace) -> int:
     if bad:
         raise UserError(f"unknown strategy {', '.join(bad)} (known: {', '.join(sorted(STRATEGIES))})")
     engine = engine_from_args(args)
-    worlds = world_specs(args.worlds)
+    worlds = world_specs(args.worlds, args.generated if not args.worlds else 0)
     for w in worlds:
-        from homing.sim.world import resolve
+        from homing.sim.world import check_spec
 
-        resolve(w)  # a missing world is the user's mistake: say so before starting workers
+        check_spec(w)  # a missing world is the user's mistake: say so before starting workers
     if args.save_maps:
         Path(args.save_maps).mkdir(parents=True, exist_ok=True)
     jobs = [(w, s, seed, args.minutes, args.save_maps) for w in worlds for s in args.strategies
@@ -293,9 +330,16 @@ def run(args: argparse.Namespace) -> int:
         results = load_runs(args.from_runs, args.strategies, [world_label(w) for w in worlds] if args.worlds else None)
         args.seeds = len({r.seed for r in results})
         jobs = []
+    finished = list(results)
+
+    def done(o: Any) -> None:
+        advance(_describe(o.result) if o.ok else f"{_job_label(o.job)}: failed")
+        if o.ok and args.runs_json:  # every finished run is kept, so a sweep stopped early keeps what it ran
+            finished.append(o.result)
+            write_json(args.runs_json, {"runs": [asdict(r) for r in finished]})
+
     with progress_bar("explore", len(jobs)) as advance:
-        outcomes = run_jobs(_job, jobs, engine, lambda o: advance(_describe(o.result) if o.ok else
-                                                                   f"{_job_label(o.job)}: failed"))
+        outcomes = run_jobs(_job, jobs, engine, done)
     results += [o.result for o in outcomes if o.ok]
     failed = failures_table(outcomes)
     results.sort(key=lambda r: (r.world, STRATEGY_ORDER.index(r.strategy) if r.strategy in STRATEGY_ORDER else 99, r.seed))
@@ -317,6 +361,17 @@ def run(args: argparse.Namespace) -> int:
         ["world", "strategy", "eff m²/s", "FD m", "PL m", "AE m²", "coverage", "min cov", "t95 s", "agree", "bumps",
          "×nearest", "×explore_lite"],
         rows,
+    )  # fmt: skip
+    kinds = sorted({plan_kind(r.world) for r in results})
+    print_table(
+        "Per plan kind (medians over every run of the kind; ratios paired run by run; false done: the robot said "
+        "done with frontiers it could reach left)",
+        ["kind", "strategy", "runs", "coverage", "min cov", "t95 s", "×nearest", "×explore_lite", "done",
+         "false done", "estimate"],
+        [[kind, strategy, s["runs"], s["coverage"], s["min_coverage"], s["t95"], s["ratio_vs_nearest"],
+          s["ratio_vs_explore_lite"], s["done"], s["false_done"], s["estimate"]]
+         for kind in [*kinds, "all"] for strategy in args.strategies
+         if (s := summary.get("all" if kind == "all" else f"kind:{kind}", {}).get(strategy)) is not None],
     )  # fmt: skip
     for f in failed:
         print(f"failed: {_job_label(tuple(f['job']))}: {f['error']}")

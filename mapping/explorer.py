@@ -15,6 +15,25 @@ Shared by every strategy, so that they differ only in their rule:
 - cells within ``reach_radius`` of the robot are never chosen (they would
   count as reached at once).
 
+- a goal reached ``MAX_ARRIVALS`` times whose frontier is still there is
+  blacklisted (``not_cleared``): the lidar cannot clear it from there, so it
+  is not visited for ever.
+
+"Done" means done (:mod:`homing.mapping.reachable`): when the strategy finds
+no goal, the map itself is asked which frontiers the robot could reach with
+its footprint from where it is, whatever the costmap says. None left (but
+those behind gaps narrower than the robot and those blacklisted): done, with
+the robot's coverage estimate and the frontiers given up and why. A site the
+costmap still reaches but the strategy declined (too small for its rule) is
+visited anyway. A site the costmap cuts off (inflation in a doorway, a
+transient obstacle, a localisation error) is a failure with a typed reason,
+``frontier_cut_off`` (or ``frontier_not_cleared`` when the only sites left
+are next to the robot), for the mission's recoveries to act on; after
+``CUT_OFF_TRIES`` such failures in a row those sites are given up as
+``cut_off``. A strategy whose early end is its published behaviour
+(``ends_without_goal``: explore_lite) still ends when it finds no goal, and
+its report says what it left.
+
 Blacklisted points are kept in the ``map`` frame, so a grid that grows (and
 moves its origin) keeps them in place. Time comes from the caller (the
 adapter's clock).
@@ -25,8 +44,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from homing.mapping.grid import OccupancyGrid
+from homing.mapping.reachable import (
+    FrontierReport,
+    FrontierSite,
+    GivenUp,
+    frontier_report,
+    site_blacklisted,
+)
 from homing.mapping.strategies import GoalChoice, GoalContext, GoalStrategy
 from homing.robot import Pose2
 from homing.robot.turtlebot import BASE_RADIUS, FOOTPRINT_RADIUS
@@ -38,6 +65,8 @@ PROGRESS_TIMEOUT = 30.0  # [s] explore_lite's progress_timeout
 PROGRESS_STEP = 0.10  # [m] the travel distance must shrink this much to count as progress
 BLACKLIST_RADIUS = 0.5  # [m]
 EXPLORED_RADIUS = 0.35  # [m] a goal with no unknown cell this close has been seen
+MAX_ARRIVALS = 2  # a place reached this often with its frontier still there is blacklisted (not_cleared)
+CUT_OFF_TRIES = 4  # failures in a row on frontiers the costmap cuts off before they are given up (one recovery round)
 
 
 @dataclass(frozen=True)
@@ -48,6 +77,8 @@ class ExploreStep:
     changed: bool
     done: bool
     choice: GoalChoice | None
+    stuck: str | None = None  # frontiers the robot could reach are cut off: a typed reason for the recoveries
+    report: FrontierReport | None = None  # what the map said was left, when it was asked
 
 
 class Explorer:
@@ -71,16 +102,47 @@ class Explorer:
         self.goal: Pose2 | None = None
         self.choice: GoalChoice | None = None
         self.blacklist: list[tuple[float, float]] = []
+        self.blacklist_reasons: list[str] = []  # why each blacklist point was given up
+        self.arrivals: list[tuple[float, float]] = []  # goals reached, (x, y) [m] in map
+        self.report: FrontierReport | None = None  # the map's verdict at the last "no goal"
+        self.cut_offs = 0  # "no goal" verdicts in a row with frontiers the costmap cuts off
+        self._declined: FrontierSite | None = None  # the site the current goal visits though the strategy declined it
         self.goals_chosen = 0
         self._best_distance = math.inf
         self._last_progress = 0.0
         self._last_choice = -math.inf
 
-    def report_failure(self) -> None:
-        """Navigation failed to reach the goal: blacklist it and choose another on the next update."""
+    def report_failure(self, reason: str = "nav_failed") -> None:
+        """Navigation failed to reach the goal (``reason``): blacklist it and choose another on the next update."""
         if self.goal is not None:
-            self.blacklist.append((self.goal.x, self.goal.y))
+            self._blacklist(self.goal.x, self.goal.y, reason)
         self.goal = None
+
+    def _blacklist(self, x: float, y: float, reason: str) -> None:
+        self.blacklist.append((x, y))
+        self.blacklist_reasons.append(reason)
+
+    def _blacklist_site(self, site: FrontierSite, grid: OccupancyGrid, reason: str) -> None:
+        """Blacklist points covering every cell of ``site`` (greedy: a cell farther than the radius from every
+        point so far becomes a point)."""
+        x, y = grid.cell_to_world(site.cells[:, 0].astype(float), site.cells[:, 1].astype(float))
+        xy = np.column_stack([np.atleast_1d(x), np.atleast_1d(y)])
+        todo = np.ones(len(xy), bool)
+        while todo.any():
+            p = xy[int(np.argmax(todo))]
+            self._blacklist(float(p[0]), float(p[1]), reason)
+            todo &= np.hypot(xy[:, 0] - p[0], xy[:, 1] - p[1]) > 0.9 * self.blacklist_radius
+
+    def given_up(self) -> tuple[GivenUp, ...]:
+        """The places given up so far (blacklisted), with why; narrow gaps are in :attr:`report`."""
+        return tuple(GivenUp(x, y, 0.0, why) for (x, y), why in zip(self.blacklist, self.blacklist_reasons,
+                                                                    strict=True))
+
+    def end_message(self) -> str:
+        """How exploration ended: the robot's coverage estimate and the frontiers given up, and why."""
+        if self.report is None:
+            return "no frontier left"
+        return self.report.summary(self.given_up())
 
     def update(self, grid: OccupancyGrid, pose: Pose2, distance: np.ndarray, now: float) -> ExploreStep:
         """One decision. ``pose`` base_link in ``map``; ``distance`` (H, W) [m] travel distance from the robot
@@ -99,11 +161,17 @@ class Explorer:
             choice = self.strategy.choose(self._context(grid, pose, distance))
             self._last_choice = now
             if choice is None:
-                done = self.goal is None or not replan
                 if replan and self.goal is not None:
                     return ExploreStep(self.goal, False, False, self.choice)
                 self.goal, self.choice = None, None
-                return ExploreStep(None, True, done, None)
+                step = self._no_goal(grid, pose, distance)
+                if step is not None:
+                    return step
+                choice = self.choice
+                assert choice is not None
+            else:
+                self.cut_offs = 0
+                self._declined = None
             gx, gy = grid.cell_to_world(*choice.cell)
             new_goal = Pose2(float(gx), float(gy), math.atan2(float(gy) - pose.y, float(gx) - pose.x))
             if self.goal is None or self.goal.distance_to(new_goal) > 0.5 * grid.resolution:
@@ -115,22 +183,71 @@ class Explorer:
             self.choice = choice
         return ExploreStep(self.goal, changed, False, self.choice)
 
+    # ---------------------------------------------------------------- "done" means done
+    def _no_goal(self, grid: OccupancyGrid, pose: Pose2, distance: np.ndarray) -> ExploreStep | None:
+        """The strategy found no goal: ask the map (module doc). Returns the step to give, or None after setting
+        ``self.choice`` to a frontier the strategy declined but the costmap reaches."""
+        report = frontier_report(grid, (pose.x, pose.y), self.robot_radius)
+        open_sites = [s for s in report.reachable
+                      if not site_blacklisted(s, grid, self.blacklist, self.blacklist_radius)]
+        report = report.given_up(len(open_sites))
+        self.report = report
+        if not open_sites or getattr(self.strategy, "ends_without_goal", False):
+            return ExploreStep(None, True, True, None, report=report)
+        ctx = self._context(grid, pose, distance)
+        beside = _beside(distance, self.robot_radius, grid.resolution)
+        best: tuple[float, FrontierSite, tuple[int, int]] | None = None
+        near_any = False
+        for site in open_sites:
+            d = beside[site.cells[:, 0], site.cells[:, 1]]
+            near_any |= bool(np.isfinite(d).any())
+            # Stand where the footprint touches the site: the reachable cell nearest to its closest cell.
+            i = int(np.argmin(d))
+            if not np.isfinite(d[i]):
+                continue
+            cell = _stand_cell(distance, ctx.excluded, tuple(site.cells[i]), self.robot_radius, grid.resolution)
+            if cell is not None and (best is None or d[i] < best[0]):
+                best = (float(d[i]), site, cell)
+        if best is not None:
+            self.cut_offs = 0
+            self.choice = GoalChoice(best[2], None, [], -best[0])
+            self._declined = best[1]  # visited once: given up on arrival if still there
+            return None
+        self.cut_offs += 1
+        if self.cut_offs >= CUT_OFF_TRIES:
+            self.cut_offs = 0
+            for site in open_sites:
+                self._blacklist_site(site, grid, "cut_off")
+            return self._no_goal(grid, pose, distance)
+        reason = "frontier_not_cleared" if near_any else "frontier_cut_off"
+        return ExploreStep(None, True, False, None, stuck=reason, report=report)
+
     # ---------------------------------------------------------------- rules
     def _give_up(self, grid: OccupancyGrid, pose: Pose2, distance: np.ndarray, now: float) -> bool:
         assert self.goal is not None
         if pose.distance_to(self.goal) <= self.reach_radius:
-            return True  # reached: choose the next one (thesis)
+            # Reached: choose the next one (thesis). A place reached again and again without its frontier
+            # clearing is given up.
+            g = (self.goal.x, self.goal.y)
+            visits = sum(math.dist(g, a) <= self.blacklist_radius for a in self.arrivals)
+            self.arrivals.append(g)
+            if self._declined is not None:
+                # A site only the map's check wanted (too small for the strategy): one visit is its chance.
+                self._blacklist_site(self._declined, grid, "not_cleared")
+            elif visits + 1 >= MAX_ARRIVALS:
+                self._blacklist(*g, "not_cleared")
+            return True
         cell = grid.world_to_cell(self.goal.x, self.goal.y)
         r, c = int(cell[0]), int(cell[1])
         if not grid.in_bounds(np.int64(r), np.int64(c)) or not np.isfinite(distance[r, c]):
-            self.blacklist.append((self.goal.x, self.goal.y))
+            self._blacklist(self.goal.x, self.goal.y, "unreachable")
             return True
         d = float(distance[r, c])
         if d < self._best_distance - PROGRESS_STEP:
             self._best_distance = d
             self._last_progress = now
         elif now - self._last_progress > self.progress_timeout:
-            self.blacklist.append((self.goal.x, self.goal.y))
+            self._blacklist(self.goal.x, self.goal.y, "no_progress")
             return True
         spent = getattr(self.strategy, "goal_spent", None)
         if self.strategy.drop_explored and spent is not None:
@@ -163,3 +280,34 @@ class Explorer:
             distance=distance, excluded=excluded, rng=self.rng, current_goal=current,
             robot_radius=self.robot_radius,
         )
+
+
+def _beside(distance: np.ndarray, robot_radius: float, resolution: float) -> np.ndarray:
+    """(H, W) [m]: the least travel distance within the footprint's radius (plus a cell) of each cell, inf where
+    none is finite: how far the robot must drive to stand against that cell."""
+    r = (robot_radius + resolution) / resolution
+    k = int(math.ceil(r))
+    yy, xx = np.mgrid[-k : k + 1, -k : k + 1]
+    disc = (xx * xx + yy * yy <= r * r).astype(np.uint8)
+    field = np.where(np.isfinite(distance), distance, 1e9).astype(np.float32)
+    out = cv2.erode(field, disc, borderType=cv2.BORDER_CONSTANT, borderValue=1e9).astype(np.float64)
+    out[out >= 1e8] = np.inf
+    return out
+
+
+def _stand_cell(distance: np.ndarray, excluded: np.ndarray, cell: tuple[int, int], robot_radius: float,
+                resolution: float) -> tuple[int, int] | None:
+    """The reachable, non-excluded cell nearest to ``cell`` within the footprint's radius (plus a cell), or None."""
+    k = int(math.ceil((robot_radius + resolution) / resolution))
+    h, w = distance.shape
+    r0, r1 = max(cell[0] - k, 0), min(cell[0] + k + 1, h)
+    c0, c1 = max(cell[1] - k, 0), min(cell[1] + k + 1, w)
+    ok = np.isfinite(distance[r0:r1, c0:c1]) & ~excluded[r0:r1, c0:c1]
+    rows, cols = np.nonzero(ok)
+    if not len(rows):
+        return None
+    d2 = (rows + r0 - cell[0]) ** 2 + (cols + c0 - cell[1]) ** 2
+    i = int(np.argmin(d2))
+    if d2[i] > k * k:
+        return None
+    return int(rows[i] + r0), int(cols[i] + c0)

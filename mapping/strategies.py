@@ -221,6 +221,7 @@ class ExploreLite:
     name = "explore_lite"
     replan_period: float | None = 1.0 / 0.33  # [s] its launch file's planner_frequency 0.33 Hz
     drop_explored = False
+    ends_without_goal = True  # its published behaviour: no frontier of its own kind left ends it ("ends early")
 
     def __init__(
         self,
@@ -293,6 +294,7 @@ class FrontierTravel(ExploreLite):
     """explore_lite's frontiers and centroid goal, cost = travel distance − frontier length (see module doc)."""
 
     name = "frontier_travel"
+    ends_without_goal = False  # homing's rule: the map decides when it is done (homing.mapping.explorer)
 
     def __init__(self, travel_weight: float = TRAVEL_WEIGHT, min_frontier_size: float = MIN_FRONTIER_SIZE,
                  crumb_size: float = CRUMB_SIZE) -> None:

@@ -1,7 +1,8 @@
 """A simulated world: a floor plan, the dock, AprilTags, slippery patches, batteries, faults, start pose.
 
 ``load_world(spec)`` takes a bundled world's name (``"lab"``), a world YAML,
-or a bare map_server YAML. A world file (all lengths in metres, angles in
+a bare map_server YAML, or a generated building ``KIND:SEED`` (``office:3``,
+``hospital:1``, ``slam_office:2``: :mod:`homing.sim.buildings`). A world file (all lengths in metres, angles in
 radians, paths relative to the file)::
 
     name: lab                      # optional, default: the file's stem
@@ -36,6 +37,7 @@ from pathlib import Path
 import numpy as np
 from homing.robot.types import Pose2
 from homing.sim.battery import BASE_DEFAULT, COMPUTER_DEFAULT, BatteryParams, params_from_section
+from homing.sim.buildings import KINDS, SPEC, generated
 from homing.sim.dock import Dock
 from homing.sim.events import Change, change_from_section
 from homing.sim.faults import Fault, fault_from_section
@@ -128,7 +130,8 @@ class World:
 
 
 def resolve(spec: str | Path) -> Path:
-    """The YAML file a world spec names: a bundled world's name or a path."""
+    """The YAML file a world spec names: a bundled world's name or a path (a generated plan has none: see
+    :func:`check_spec`)."""
     text = str(spec)
     bundled = WORLDS_DIR / f"{text}.yaml"
     if "/" not in text and not text.endswith((".yaml", ".yml")) and bundled.is_file():
@@ -136,12 +139,24 @@ def resolve(spec: str | Path) -> Path:
     path = Path(text)
     if not path.exists():
         names = sorted(p.stem for p in WORLDS_DIR.glob("*.yaml") if not p.stem.endswith("_map"))
-        raise UserError(f"no world named '{text}' (bundled: {', '.join(names)}) and no such file")
+        raise UserError(f"no world named '{text}' (bundled: {', '.join(names)}; generated: "
+                        f"{', '.join(k + ':SEED' for k in KINDS)}) and no such file")
     return path
 
 
+def check_spec(spec: str | Path) -> None:
+    """Raise :class:`UserError` unless ``spec`` names a world: bundled, a file, or a generated plan (``office:3``)."""
+    if SPEC.match(str(spec)) is None:
+        resolve(spec)
+
+
 def load_world(spec: str | Path) -> World:
-    """Load a world by bundled name, world YAML path, or bare map_server YAML path."""
+    """Load a world by bundled name, world YAML path, bare map_server YAML path, or generated plan ``KIND:SEED``
+    (:mod:`homing.sim.buildings`: the dock placed as on a bare map)."""
+    made = generated(str(spec))
+    if made is not None:
+        name, data = made
+        return _from_map_data(name, data, None)
     path = resolve(spec)
     doc = load(path)
     if not isinstance(doc, LocatedDict):
@@ -152,14 +167,17 @@ def load_world(spec: str | Path) -> World:
 
 
 def _from_bare_map(path: Path) -> World:
-    data = load_map(path)
+    return _from_map_data(path.stem, load_map(path), path)
+
+
+def _from_map_data(name: str, data: MapData, path: Path | None) -> World:
     try:
         station = place_dock(data)
     except ValueError as err:
         raise UserError(f"cannot place a dock: {err}", path) from None
     dock = Dock(station)
     tag = _dock_tag(dock, 0, TAG_HEIGHT, TAG_SIZE)
-    return World(path.stem, data, dock, (tag,), 0, dock.docked, source=path)
+    return World(name, data, dock, (tag,), 0, dock.docked, source=path)
 
 
 def _dock_tag(dock: Dock, tag_id: int, height: float, size: float) -> Tag:

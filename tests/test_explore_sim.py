@@ -6,22 +6,24 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from homing.robot import Pose2
 
 from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData, save_map
 
 RES = 0.05  # [m]
 
 
-def three_rooms(folder: Path) -> Path:
+def three_rooms(folder: Path, second_door: tuple[float, float] = (0.0, 1.2)) -> Path:
     """An 8 m × 4 m floor split into three rooms by walls at x = 2.7 m (door at the north end) and x = 5.3 m
-    (door at the south end), so no room sees into the next but one; map_server YAML (the sim places the dock)."""
+    (a door from y = ``second_door[0]`` to ``[1]`` [m], at the south end), so no room sees into the next but one; map_server YAML
+    (the sim places the dock)."""
     margin, wall = 0.5, 0.10  # [m]
     w, h = 8.0, 4.0
     g = np.full((round((h + 2 * margin) / RES), round((w + 2 * margin) / RES)), UNKNOWN, dtype=np.int8)
     i0, i1 = round((margin - wall) / RES), round(margin / RES)
     g[i0:-i0, i0:-i0] = OCCUPIED
     g[i1:-i1, i1:-i1] = FREE
-    for x, (y0, y1) in ((2.7, (2.8, 4.0)), (5.3, (0.0, 1.2))):
+    for x, (y0, y1) in ((2.7, (2.8, 4.0)), (5.3, second_door)):
         c = round((margin + x) / RES)
         g[i1:-i1, c - 1 : c + 1] = OCCUPIED
         g[round((margin + y0) / RES) : round((margin + y1) / RES), c - 1 : c + 1] = FREE  # the door
@@ -44,3 +46,46 @@ def test_explores_three_rooms_without_touching_anything(tmp_path: Path, strategy
     assert r.goals >= 3 and r.farthest > 2.0  # it drove through the doors, not just looked
     grid = load_grid(saved)
     assert abs((grid.data == FREE).sum() * grid.resolution**2 - r.area) < 0.01
+
+
+@pytest.mark.slow
+def test_a_gap_narrower_than_the_robot_ends_exploration_with_the_gap_reported_and_the_rest_covered(
+        tmp_path: Path) -> None:
+    """The third room is behind a 0.25 m gap (the robot is 0.35 m wide): exploration ends on its own, says
+    which gap it gave up, and has covered the two rooms the robot can get into."""
+    import cv2
+    from homing.benchmarks.explore import run_one
+    from homing.mapping.map_io import load_grid
+    from homing.mapping.reachable import frontier_report
+    from homing.robot.turtlebot import FOOTPRINT_RADIUS
+    from homing.sim import load_world
+
+    plan = three_rooms(tmp_path, second_door=(0.3, 0.55))
+    saved = tmp_path / "final.yaml"
+    r = run_one(str(plan), "frontier_travel", seed=3, minutes=8.0, save_map=str(saved))
+    assert r.done and r.frontiers_left == 0 and r.given_up >= 1, r
+    world = load_world(plan)
+    world_from_map = world.start  # the map frame is the odometry's, which starts at zero on the dock
+    grid = load_grid(saved)
+    # The gap given up: a narrow frontier just beyond the wall at x = 5.3 m, near the gap (y 0.3..0.55 m).
+    report = frontier_report(grid, (0.0, 0.0))
+    assert report.reachable == ()
+    near_gap = []
+    for site in report.narrow:
+        p = world_from_map.compose(Pose2(site.x, site.y, 0.0))
+        near_gap.append(5.0 <= p.x <= 6.3 and -0.2 <= p.y <= 1.2)
+    assert any(near_gap), report.summary()
+    # Everything the footprint can reach (the first two rooms), and the walls around it, has been seen.
+    truth = world.map
+    fits = cv2.distanceTransform((truth.grid == FREE).astype(np.uint8), cv2.DIST_L2, 5) * truth.resolution
+    reach = (fits > FOOTPRINT_RADIUS) & (np.arange(truth.grid.shape[1])[None, :] * truth.resolution
+                                         + truth.origin[0] < 5.2)
+    rows, cols = np.nonzero(reach)
+    xy = np.column_stack([truth.origin[0] + (cols + 0.5) * truth.resolution,
+                          truth.origin[1] + (rows + 0.5) * truth.resolution])
+    pts = world_from_map.inverse().transform_points(xy)
+    gr, gc = grid.world_to_cell(pts[:, 0], pts[:, 1])
+    ok = grid.in_bounds(gr, gc)
+    seen = np.zeros(len(rows), bool)
+    seen[ok] = grid.data[gr[ok], gc[ok]] != UNKNOWN
+    assert seen.mean() >= 0.95

@@ -24,7 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("mission", metavar="MISSION.yaml")
     robot = parser.add_mutually_exclusive_group()
-    robot.add_argument("--world", help="a bundled world's name, a world YAML or a map_server YAML")
+    robot.add_argument("--world", help="a bundled world's name, a world YAML, a map_server YAML or a generated "
+                       "building (office:SEED, hospital:SEED, slam_office:SEED)")
     robot.add_argument("--robot", metavar="ROBOT.yaml", help="drive the real robot its robot file describes (wall clock)")
     robot.add_argument(
         "--adapter", metavar="MODULE:CALLABLE",

@@ -1,0 +1,207 @@
+"""Which frontiers the robot could reach on the map itself, and the report exploration ends with ("done" means done).
+
+A strategy sees frontiers through the navigator's costmap: inflation around
+the robot in a doorway, a transient obstacle or a momentary localisation
+error can cut the robot off in a pocket, and a strategy that then finds no
+goal would call the building explored (explore_lite's best-known failure,
+m-explore #26, #68). This module asks the map alone:
+
+1. where the robot's centre fits: known-free cells farther than the
+   footprint's radius from every wall cell (unknown space does not block:
+   the robot may stand beside it);
+2. the part of it the robot is in: the 8-connected components of (1) within
+   ``SEED_RADIUS`` of the robot (so a robot standing in inflation, or
+   slightly mislocalised, still counts as in the room it is in), else the
+   component nearest to it;
+3. **reachable frontiers**: cells of (2) 8-adjacent to unknown space of at
+   least ``MIN_UNKNOWN`` (a map's pinholes are not frontiers), grouped
+   8-connected, ``MIN_SITE`` long or more, from which the lidar would see at
+   least ``MIN_VIEW`` of unknown space (rays stopped by mapped walls:
+   :func:`homing.mapping.strategies.visible_unknown`) — so the unknown inside
+   a desk whose corner the lidar never outlined, walled in on every other
+   side, is not a frontier: places the robot can stand next to the unknown
+   and see into it;
+4. **narrow frontiers**: known-free cells 8-adjacent to such unknown space
+   that no cell of (2) comes within the footprint's radius (plus a cell) of,
+   grouped the same way: unknown seen only through a gap narrower than the
+   robot (explore_lite #40, #52), given up at once and reported, never
+   retried;
+5. the robot's own coverage estimate: known free area over known free area
+   plus what is still unseen behind every frontier left (reachable, given up
+   or narrow): the unknown area the lidar would see from it within ``VIEW``,
+   but no more than the frontier's length times ``VIEW`` (unknown space
+   behind an unmapped wall face is not all building). It reads 100 % on a
+   closed map.
+
+Grids are map_server views ((H, W) int8, FREE 0 / OCCUPIED 100 / UNKNOWN −1,
+row 0 at the lowest y); positions are metres in the ``map`` frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from homing.mapping.frontier import OCCUPIED_AT
+from homing.mapping.grid import OccupancyGrid
+from homing.mapping.strategies import VIEW_RAYS, visible_unknown
+from homing.robot.turtlebot import FOOTPRINT_RADIUS
+
+from homing.map_server import FREE, UNKNOWN
+
+SEED_RADIUS = 0.6  # [m] fitting cells this close to the robot are where it is (inflation, localisation error)
+MIN_UNKNOWN = 0.05  # [m²] unknown pockets smaller than this (pinholes between rays) are not frontiers
+MIN_SITE = 0.25  # [m] frontier sites shorter than this are noise
+VIEW = 3.0  # [m] unknown this close to an open frontier counts as still to be seen (half the lidar's range)
+MIN_VIEW = 0.5  # [m²] unknown area the lidar must be able to see from a site for it to be a frontier
+VIEW_SAMPLES = 12  # cells of a site the view is cast from (evenly spaced)
+
+
+@dataclass(frozen=True)
+class FrontierSite:
+    """A frontier segment: its centroid (x, y) [m] in ``map``, its length [m], and its cells (N, 2) (row, col)."""
+
+    x: float
+    y: float
+    length: float
+    cells: np.ndarray = field(repr=False, compare=False)
+    view: float = 0.0  # [m²] unknown area the lidar would see from its best cell within VIEW
+
+
+@dataclass(frozen=True)
+class GivenUp:
+    """A frontier exploration will not go to, and why: ``narrower_than_robot``, or the explorer's reason for
+    blacklisting the place (``no_progress``, ``no_path``, ``cut_off``, …)."""
+
+    x: float
+    y: float
+    length: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class FrontierReport:
+    """What the map says is left: frontiers the robot can reach, ones behind gaps narrower than it, and its own
+    coverage estimate (fraction, 1.0 when nothing is left to see)."""
+
+    reachable: tuple[FrontierSite, ...]
+    narrow: tuple[FrontierSite, ...]
+    coverage_estimate: float
+    free_area: float  # [m²]
+    left: int = -1  # reachable frontiers not given up (-1: not counted yet, all of ``reachable``)
+
+    @property
+    def open(self) -> int:
+        """Reachable frontiers still to go to (those the explorer has not given up)."""
+        return len(self.reachable) if self.left < 0 else self.left
+
+    def given_up(self, left: int) -> FrontierReport:
+        """The same report, knowing that only ``left`` of the reachable frontiers are still open."""
+        return FrontierReport(self.reachable, self.narrow, self.coverage_estimate, self.free_area, left)
+
+    def summary(self, given_up: tuple[GivenUp, ...] = ()) -> str:
+        """One line for a log or a feedback message."""
+        gone = [*(GivenUp(s.x, s.y, s.length, "narrower_than_robot") for s in self.narrow), *given_up]
+        text = (f"coverage estimate {self.coverage_estimate:.0%} of {self.free_area:.0f} m² free; "
+                f"{self.open} reachable frontier(s) left")
+        if gone:
+            text += "; given up: " + ", ".join(f"({g.x:.1f}, {g.y:.1f}) {g.length:.1f} m {g.reason}" for g in gone)
+        return text
+
+
+def _disc(radius_cells: float) -> np.ndarray:
+    k = max(0, int(math.ceil(radius_cells - 1e-9)))
+    yy, xx = np.mgrid[-k : k + 1, -k : k + 1]
+    return (xx * xx + yy * yy <= radius_cells * radius_cells + 1e-9).astype(np.uint8)
+
+
+def fits_mask(grid: np.ndarray, resolution: float, robot_radius: float = FOOTPRINT_RADIUS) -> np.ndarray:
+    """(H, W) bool: known-free cells whose centre is farther than ``robot_radius`` [m] from every wall cell."""
+    occ = (grid >= OCCUPIED_AT).astype(np.uint8)
+    if not occ.any():
+        return grid == FREE
+    d = cv2.distanceTransform(1 - occ, cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * resolution
+    return (grid == FREE) & (d > robot_radius)
+
+
+def robot_region(fits: np.ndarray, robot_cell: tuple[float, float], resolution: float) -> np.ndarray:
+    """(H, W) bool: the components of ``fits`` within SEED_RADIUS of ``robot_cell`` (row, col) (fractional), or the
+    one nearest to it; all False when nothing fits anywhere."""
+    n, labels = cv2.connectedComponents(fits.astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return np.zeros_like(fits)
+    h, w = fits.shape
+    r, c = robot_cell
+    k = int(math.ceil(SEED_RADIUS / resolution))
+    r0, r1 = max(int(r) - k, 0), min(int(r) + k + 1, h)
+    c0, c1 = max(int(c) - k, 0), min(int(c) + k + 1, w)
+    yy, xx = np.mgrid[r0:r1, c0:c1]
+    near = (yy - r) ** 2 + (xx - c) ** 2 <= k * k
+    seeds = np.unique(labels[r0:r1, c0:c1][near])
+    seeds = seeds[seeds > 0]
+    if not len(seeds):
+        rows, cols = np.nonzero(fits)
+        i = int(np.argmin((rows - r) ** 2 + (cols - c) ** 2))
+        seeds = np.array([labels[rows[i], cols[i]]])
+    return np.isin(labels, seeds)
+
+
+def _open_unknown(grid: np.ndarray, resolution: float) -> np.ndarray:
+    """(H, W) bool: unknown cells in 8-connected unknown regions of at least MIN_UNKNOWN."""
+    unknown = (grid == UNKNOWN).astype(np.uint8)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(unknown, connectivity=8)
+    big = stats[:, cv2.CC_STAT_AREA] * resolution**2 >= MIN_UNKNOWN
+    big[0] = False
+    return big[labels]
+
+
+def _sites(mask: np.ndarray, grid: OccupancyGrid) -> list[FrontierSite]:
+    n, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    out = []
+    for k in range(1, n):
+        rows, cols = np.nonzero(labels == k)
+        length = len(rows) * grid.resolution
+        if length < MIN_SITE:
+            continue
+        step = max(1, len(rows) // VIEW_SAMPLES)
+        sample = np.column_stack([rows[::step], cols[::step]]).astype(np.int64)
+        view = float(visible_unknown(grid.data, grid.resolution, sample, VIEW, VIEW_RAYS).max())
+        if view < MIN_VIEW:
+            continue  # walled in: nothing the lidar could see from here
+        x, y = grid.cell_to_world(float(rows.mean()), float(cols.mean()))
+        out.append(FrontierSite(float(x), float(y), length, np.column_stack([rows, cols]).astype(np.int64), view))
+    return out
+
+
+def frontier_report(grid: OccupancyGrid, robot_xy: tuple[float, float],
+                    robot_radius: float = FOOTPRINT_RADIUS) -> FrontierReport:
+    """The map's frontiers split into reachable and narrow (module doc), and the coverage estimate.
+    ``robot_xy`` [m] in ``map``."""
+    g, res = grid.data, grid.resolution
+    r = (robot_xy[1] - grid.origin[1]) / res - 0.5
+    c = (robot_xy[0] - grid.origin[0]) / res - 0.5
+    fits = fits_mask(g, res, robot_radius)
+    region = robot_region(fits, (r, c), res)
+    unknown = _open_unknown(g, res)
+    beside_unknown = cv2.dilate(unknown.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    reach_front = region & beside_unknown
+    near_region = cv2.dilate(region.astype(np.uint8), _disc(robot_radius / res + 1.0)).astype(bool)
+    narrow_front = (g == FREE) & beside_unknown & ~near_region
+    reachable, narrow = _sites(reach_front, grid), _sites(narrow_front, grid)
+    free_area = float((g == FREE).sum()) * res**2
+    unseen = sum(min(s.view, s.length * VIEW) for s in (*reachable, *narrow))  # [m²]
+    estimate = free_area / (free_area + unseen) if free_area > 0 else 0.0
+    return FrontierReport(tuple(reachable), tuple(narrow), estimate, free_area)
+
+
+def site_blacklisted(site: FrontierSite, grid: OccupancyGrid, points: list[tuple[float, float]],
+                     radius: float) -> bool:
+    """Whether every cell of ``site`` lies within ``radius`` [m] of one of ``points`` ((x, y) [m] in ``map``)."""
+    if not points:
+        return False
+    x, y = grid.cell_to_world(site.cells[:, 0].astype(float), site.cells[:, 1].astype(float))
+    pts = np.asarray(points, float)
+    d2 = (np.asarray(x)[:, None] - pts[None, :, 0]) ** 2 + (np.asarray(y)[:, None] - pts[None, :, 1]) ** 2
+    return bool((d2.min(axis=1) <= radius * radius).all())
