@@ -18,9 +18,16 @@ from homing.map_server import FREE, load_map
 from tests.conftest import REPO
 
 
+def _default_sigint() -> None:
+    # A shell without job control starts background jobs with SIGINT ignored, and homing rightly keeps a signal
+    # it was started ignoring (as under nohup); these tests are about Ctrl-C, so the child starts with the default.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _homing(*args: str, env: dict[str, str] | None = None) -> subprocess.Popen[str]:
     return subprocess.Popen([sys.executable, "-m", "homing.missions.cli", *args], cwd=REPO, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, **(env or {})})
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, **(env or {})},
+                            preexec_fn=_default_sigint)
 
 
 def _wait_for_line(path: Path, text: str, proc: subprocess.Popen[str], timeout: float = 120.0) -> list[str]:
