@@ -72,8 +72,9 @@ RECOVERY = """
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from homing.benchmarks.engine import add_engine_arguments
+    from homing.missions.commands._args import count
 
-    parser.add_argument("--runs", type=int, default=20, help="seeded runs per variant (the thesis: 5)")
+    parser.add_argument("--runs", type=count, default=20, help="seeded runs per variant (the thesis: 5)")
     parser.add_argument("--world", default="lab", help="world to dock in (default: the lab)")
     parser.add_argument("--time-limit", default="15 min", help="a run that has not docked by then failed")
     parser.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS))

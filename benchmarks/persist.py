@@ -43,12 +43,14 @@ SAMPLE = 600.0  # [s] simulated time between memory samples
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--days", type=float, default=1.0, help="simulated days (default 1)")
+    from homing.missions.commands._args import output_file, positive, seed
+
+    parser.add_argument("--days", type=positive, default=1.0, help="simulated days (default 1)")
     parser.add_argument("--world", default="lab", help="world to live in (default: the lab)")
-    parser.add_argument("--seed", type=int, default=1, help="seed of the run, its world changes and faults")
+    parser.add_argument("--seed", type=seed, default=1, help="seed of the run, its world changes and faults")
     parser.add_argument("--fault-every", default="2 h", help="one fault per this much simulated time (0: none)")
     parser.add_argument("--no-changes", action="store_true", help="a world that never changes")
-    parser.add_argument("--plot", metavar="PNG", help="draw resident memory over time into PNG")
+    parser.add_argument("--plot", metavar="PNG", type=output_file("--plot"), help="draw resident memory over time into PNG")
 
 
 def rss_mb() -> float:

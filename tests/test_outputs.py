@@ -83,6 +83,8 @@ def _commands(bad: Path, tmp_path: Path) -> Iterator[list[str]]:
     yield ["replay", str(tmp_path / "run.hlog"), "--out", str(bad)]
     yield ["bench", "tick", "--json", str(bad)]
     yield ["bench", "explore", "--runs-json", str(bad)]
+    yield ["bench", "persist", "--plot", str(bad)]
+    yield ["bench", "dock", "--json", str(bad)]
 
 
 def test_every_output_option_is_checked_before_anything_runs(bad_paths: dict[str, Path], tmp_path: Path,
