@@ -1,4 +1,4 @@
-"""Frontier goal strategies chosen by name: the thesis's four (Mata 2017, §2.4.2, table 5.1), explore_lite's cost (Hörner 2016), that cost weighed by travel distance (the default), and information gain per travel time.
+"""Frontier goal strategies chosen by name: the thesis's four (Mata 2017, §2.4.2, table 5.1), explore_lite's cost (Hörner 2016), a tour over explore_lite's frontiers (the default), and information gain per travel time.
 
 Every strategy sees the same :class:`GoalContext`: the map_server grid, the
 robot's cell and heading, the travel-distance field from the robot on the
@@ -24,20 +24,18 @@ choose again live in :mod:`homing.mapping.explorer`, shared by all.
   then plans to the centroid; here the centroid is snapped to the nearest
   reachable cell within ``CENTROID_TOLERANCE`` (else the frontier is skipped,
   as move_base would abort it and explore_lite blacklist it).
-- ``frontier_travel`` (default) — explore_lite's frontiers and centroid goal, with
-  the cost it means to have: ``TRAVEL_WEIGHT``·(the planner's travel
-  distance to the segment) − (its length), both in metres. explore_lite's
-  own distance term is the straight line times ``potential_scale`` times the
-  resolution (0.15 per metre at 5 cm cells), so next to a frontier's size it
-  hardly counts: the robot crosses the map for the largest frontier and
-  comes back for the small ones it left behind. Weighing a metre of
-  frontier against a metre of driving keeps what makes explore_lite fast in
-  halls and corridors (the frontier's length is a good guess of how much
-  space opens behind it, and the centroid goal, replanned every 3 s, keeps
-  the robot driving through the middle of the space) and clears nearby
-  rooms before leaving them. Once no frontier of explore_lite's minimum size
-  is left, ones down to ``CRUMB_SIZE`` are still visited, so the run does not
-  end short of the whole map (explore_lite's "ends early").
+- ``frontier_travel`` (default) — explore_lite's frontiers and centroid
+  goals, visited in the order of the shortest open tour through all of them
+  by path distance (:mod:`homing.mapping.frontier_tour`), re-planned every
+  3 s as explore_lite replans, keeping its current goal unless another order
+  is clearly shorter (hysteresis). A one-step rule — explore_lite's cost,
+  whose distance term is 0.15 per metre at 5 cm cells and hardly counts, or
+  the nearest frontier — sends the robot back for the door it passed or
+  across the building for the largest frontier; the tour passes each room on
+  the way and finishes a room before leaving it. Once no frontier of
+  explore_lite's minimum size is left, ones down to ``CRUMB_SIZE`` are still
+  visited, so the run does not end short of the whole map (explore_lite's
+  "ends early").
 - ``gain_rate`` — information gain per travel time (the default before
   ``frontier_travel``: better in worlds of many small rooms, slower in
   halls, where it leaves a hall half-seen for a bigger gain elsewhere and
@@ -67,6 +65,7 @@ from typing import Protocol
 
 import cv2
 import numpy as np
+from homing.mapping import frontier_tour
 from homing.mapping.frontier import (
     OCCUPIED_AT,
     FrontierSegment,
@@ -82,7 +81,7 @@ POTENTIAL_SCALE = 3.0  # explore_lite launch default
 GAIN_SCALE = 1.0  # explore_lite launch default
 MIN_FRONTIER_SIZE = 0.75  # [m] explore_lite launch default
 CENTROID_TOLERANCE = 1.0  # [m] how far a centroid goal may be moved to a reachable cell
-TRAVEL_WEIGHT = 1.0  # frontier_travel: metres of frontier one metre of travel is worth
+SAME_FRONTIER = 1.5  # [m] frontier_travel: a frontier passing this near the current goal is the one driven to
 CRUMB_SIZE = 0.3  # [m] frontier_travel visits frontiers this small once none of MIN_FRONTIER_SIZE is left
 GAIN_RADIUS = 3.0  # [m] unknown area counted around a goal: half the lidar's 6 m range
 GAIN_POOL = 4  # cells pooled per side when counting unknown area (speed)
@@ -271,62 +270,81 @@ class ExploreLite:
         segs = self.frontiers(ctx, min_size)
         if not segs:
             return None
-        res = ctx.resolution
         costs = self.costs(ctx, segs)
-        reachable = np.isfinite(ctx.distance) & ~ctx.excluded
-        rows, cols = np.nonzero(reachable)
+        free = _goal_cells(ctx)
         for i in np.argsort(costs, kind="stable"):
             if not math.isfinite(costs[int(i)]):
                 break  # the rest cannot be reached either
-            s = segs[int(i)]
-            cr, cc = s.centroid()
-            if ctx.excluded[int(round(cr)), int(round(cc))] or not len(rows):
-                continue
-            d2 = (rows - cr) ** 2 + (cols - cc) ** 2
-            j = int(np.argmin(d2))
-            if math.sqrt(float(d2[j])) * res > CENTROID_TOLERANCE:
-                continue
-            return GoalChoice((int(rows[j]), int(cols[j])), s, segs, -float(costs[int(i)]))
+            cell = _centroid_goal(segs[int(i)], ctx, free)
+            if cell is not None:
+                return GoalChoice(cell, segs[int(i)], segs, -float(costs[int(i)]))
         return None
 
 
+def _goal_cells(ctx: GoalContext) -> np.ndarray:
+    """(N, 2) cells a goal may be moved to: reachable and not excluded."""
+    return np.argwhere(np.isfinite(ctx.distance) & ~ctx.excluded)
+
+
+def _centroid_goal(seg: FrontierSegment, ctx: GoalContext, free: np.ndarray) -> tuple[int, int] | None:
+    """explore_lite's goal for a segment: its centroid, moved to the nearest of the ``free`` (N, 2) cells within
+    ``CENTROID_TOLERANCE``; None when the centroid is excluded or no such cell is near (move_base would abort
+    it and explore_lite blacklist it)."""
+    cr, cc = seg.centroid()
+    if ctx.excluded[int(round(cr)), int(round(cc))] or not len(free):
+        return None
+    d2 = (free[:, 0] - cr) ** 2 + (free[:, 1] - cc) ** 2
+    j = int(np.argmin(d2))
+    if math.sqrt(float(d2[j])) * ctx.resolution > CENTROID_TOLERANCE:
+        return None
+    return int(free[j, 0]), int(free[j, 1])
+
+
 class FrontierTravel(ExploreLite):
-    """explore_lite's frontiers and centroid goal, cost = travel distance − frontier length (see module doc)."""
+    """explore_lite's frontiers and centroid goals, visited in the order of the shortest tour (see module doc)."""
 
     name = "frontier_travel"
     ends_without_goal = False  # homing's rule: the map decides when it is done (homing.mapping.explorer)
 
-    def __init__(self, travel_weight: float = TRAVEL_WEIGHT, min_frontier_size: float = MIN_FRONTIER_SIZE,
-                 crumb_size: float = CRUMB_SIZE) -> None:
+    def __init__(self, min_frontier_size: float = MIN_FRONTIER_SIZE, crumb_size: float = CRUMB_SIZE) -> None:
         super().__init__(min_frontier_size=min_frontier_size)
-        self.travel_weight = travel_weight
         self.crumb_size = crumb_size
+        self.tour: list[tuple[int, int]] = []  # the goals in the order of the last tour planned (for pictures)
+
+    def goals(self, ctx: GoalContext) -> list[tuple[FrontierSegment, tuple[int, int]]]:
+        """Each frontier of explore_lite's minimum size with its goal; when none is left, those down to
+        ``crumb_size`` (rather than stop short of the whole map: explore_lite's "ends early")."""
+        free = _goal_cells(ctx)
+        for size in (self.min_frontier_size, self.crumb_size):
+            out = []
+            for seg in self.frontiers(ctx, size):
+                cell = _centroid_goal(seg, ctx, free)
+                if cell is not None:
+                    out.append((seg, cell))
+            if out or size <= self.crumb_size:
+                return out
+        return []
 
     def choose(self, ctx: GoalContext) -> GoalChoice | None:
-        choice = self._choose(ctx, self.min_frontier_size)
-        if choice is None and self.crumb_size < self.min_frontier_size:
-            # No frontier of explore_lite's minimum size is left: visit the smaller ones too, rather than stop
-            # short of the whole map (explore_lite's "ends early").
-            choice = self._choose(ctx, self.crumb_size)
-        return choice
-
-    def costs(self, ctx: GoalContext, segs: list[FrontierSegment]) -> list[float]:
-        """``travel_weight``·(planner distance to the segment) − its length [m]; ``inf`` for a segment the
-        robot cannot get near."""
-        # Frontier cells are unknown, and the free cells just beside a wall are out of the footprint's reach,
-        # so the planner's distance field is inf on them: take its minimum within the footprint's radius
-        # (plus a cell) of each frontier cell (a morphological min filter) — where the robot can stand.
-        r = (ctx.robot_radius + ctx.resolution) / ctx.resolution
-        k = int(math.ceil(r))
-        yy, xx = np.mgrid[-k : k + 1, -k : k + 1]
-        disc = (xx * xx + yy * yy <= r * r).astype(np.uint8)
-        beside = cv2.erode(np.where(np.isfinite(ctx.distance), ctx.distance, 1e9).astype(np.float32), disc,
-                           borderType=cv2.BORDER_CONSTANT, borderValue=1e9)
-        out = []
-        for s in segs:
-            d = float(beside[s.cells[:, 0], s.cells[:, 1]].min())
-            out.append(self.travel_weight * d - s.size * ctx.resolution if d < 1e8 else math.inf)
-        return out
+        goals = self.goals(ctx)
+        if not goals:
+            self.tour = []
+            return None
+        cells = np.array([c for _, c in goals], np.int64)
+        start = ctx.distance[cells[:, 0], cells[:, 1]]
+        current = None
+        if ctx.current_goal is not None:
+            # The frontier driven to is the one passing nearest the current goal (its centroid, and so its goal,
+            # shifts as the lidar sees more of it; the frontier itself stays where it was, or recedes).
+            g = ctx.current_goal
+            near = [float(np.min(np.hypot(seg.cells[:, 0] - g[0], seg.cells[:, 1] - g[1]))) for seg, _ in goals]
+            if min(near) * ctx.resolution <= SAME_FRONTIER:
+                current = int(np.argmin(near))
+        robot = (int(round(ctx.robot_cell[0])), int(round(ctx.robot_cell[1])))
+        order = frontier_tour.plan(robot, ctx.grid, ctx.resolution, np.isfinite(ctx.distance), cells, start, current)
+        self.tour = [goals[i][1] for i in order]
+        seg, cell = goals[order[0]]
+        return GoalChoice(cell, seg, [s for s, _ in goals], -float(start[order[0]]))
 
 
 def unknown_gain(grid: np.ndarray, resolution: float, radius: float = GAIN_RADIUS) -> np.ndarray:

@@ -1,0 +1,165 @@
+"""The physical bound on exploration time: a short route from the start from which the lidar sees 95 % of the reachable free area, driven at the navigation speed limit (ground truth; evaluation only).
+
+No strategy, however clever, explores faster than a robot that knows the
+floor plan beforehand and drives the shortest route from which its lidar
+sees the target share of the place. This computes such a route on the true
+map, for a world of ``homing bench explore``:
+
+1. the cells to see: the free cells reachable from the start (the coverage
+   figure's denominator, :func:`homing.mapping.evaluate.reachable_free`);
+2. viewpoints: cells where the footprint fits, on a ``SPACING`` lattice, and
+   the start; each sees the free cells its lidar's rays reach (``RAYS`` rays,
+   ``LIDAR_RANGE``, stopping at the first wall);
+3. a greedy set cover (the start first, then the viewpoint seeing the most
+   cells not yet seen) until ``TARGET`` of the cells are seen;
+4. the shortest open tour from the start through those viewpoints by path
+   distance (:mod:`homing.mapping.frontier_tour`), and its time at
+   ``NAV_MAX_V``, with no turning, stopping or scan-matching time.
+
+Greedy cover and tour are heuristics, so the route is a little longer than
+the best one, but the robot that drives it knows everything the explorer has
+to find out: read its time as what the building itself costs, the floor
+under a strategy's time to 95 %.
+"""
+
+from __future__ import annotations
+
+import argparse
+import heapq
+import math
+from dataclasses import asdict, dataclass
+
+import cv2
+import numpy as np
+
+LIDAR_RANGE = 6.0  # [m] RPLIDAR A1 as the thesis used it
+RAYS = 360  # lidar rays (1° steps)
+SPACING = 0.5  # [m] lattice of candidate viewpoints
+TARGET = 0.95  # share of the reachable free area to see
+CHUNK = 64  # viewpoints ray-cast at once (memory)
+
+
+@dataclass(frozen=True)
+class Bound:
+    """A covering route: the reachable free area [m²], viewpoints on it, its length [m] and time [s]."""
+
+    world: str
+    area: float
+    viewpoints: int
+    length: float
+    time: float
+
+
+def visible_cells(free: np.ndarray, resolution: float, cells: np.ndarray) -> list[np.ndarray]:
+    """For each of ``cells`` (N, 2) (row, col), the flat indices into ``free`` (H, W) bool of the free cells a
+    lidar there sees: ``RAYS`` rays sampled every half cell out to ``LIDAR_RANGE`` [m], stopping at the first
+    cell that is not free."""
+    h, w = free.shape
+    n_s = int(LIDAR_RANGE / (0.5 * resolution))
+    r = (np.arange(n_s) + 0.5) * 0.5  # [cells]
+    a = np.arange(RAYS) * (2 * np.pi / RAYS)
+    dr, dc = np.sin(a)[:, None] * r[None, :], np.cos(a)[:, None] * r[None, :]
+    pad = n_s // 2 + 2
+    padded = np.pad(free, pad, constant_values=False)
+    pw = padded.shape[1]
+    out = []
+    for i in range(0, len(cells), CHUNK):
+        c = cells[i : i + CHUNK]
+        rows = np.floor(c[:, 0, None, None] + 0.5 + dr[None]).astype(np.int64) + pad
+        cols = np.floor(c[:, 1, None, None] + 0.5 + dc[None]).astype(np.int64) + pad
+        flat = rows * pw + cols
+        open_ray = np.logical_and.accumulate(padded.ravel()[flat], axis=2)
+        for k in range(len(c)):
+            seen = flat[k][open_ray[k]]
+            pr, pc = seen // pw - pad, seen % pw - pad
+            out.append(np.unique(pr * w + pc))
+    return out
+
+
+def greedy_cover(sets: list[np.ndarray], need: int, first: int) -> list[int]:
+    """Indices of ``sets`` (flat cell indices each) whose union has at least ``need`` cells: ``first``, then
+    greedily the set adding the most (lazy evaluation: a set's gain only shrinks)."""
+    seen: set[int] = set(sets[first].tolist())
+    chosen = [first]
+    heap = [(-len(s), i) for i, s in enumerate(sets) if i != first]
+    heapq.heapify(heap)
+    while len(seen) < need and heap:
+        _, i = heapq.heappop(heap)
+        gain = sum(1 for x in sets[i].tolist() if x not in seen)
+        if heap and gain < -heap[0][0]:
+            heapq.heappush(heap, (-gain, i))  # stale: look again later
+            continue
+        if gain == 0:
+            break
+        chosen.append(i)
+        seen.update(sets[i].tolist())
+    return chosen
+
+
+def covering_route(world_spec: str, target: float = TARGET) -> Bound:
+    """The route of the module doc for the world ``world_spec`` (a bundled name, YAML path or ``KIND:SEED``)."""
+    from homing.mapping.evaluate import reachable_free
+    from homing.mapping.frontier_tour import open_tour, path_distances
+    from homing.robot.turtlebot import FOOTPRINT_RADIUS, NAV_MAX_V
+    from homing.sim import load_world
+
+    from homing.map_server import FREE
+
+    world = load_world(world_spec)
+    truth = world.map
+    res = truth.resolution
+    start = (world.start.x, world.start.y)
+    reach = reachable_free(truth, start)
+    free = truth.grid == FREE
+    clear = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * res
+    fits = reach & (clear >= FOOTPRINT_RADIUS)
+    _, labels = cv2.connectedComponents(fits.astype(np.uint8), connectivity=8)
+    s_cell = (int((start[1] - truth.origin[1]) / res), int((start[0] - truth.origin[0]) / res))
+    fr, fc = np.nonzero(fits)
+    j = int(np.argmin((fr - s_cell[0]) ** 2 + (fc - s_cell[1]) ** 2))
+    s_cell = (int(fr[j]), int(fc[j]))
+    fits &= labels == labels[s_cell]
+    step = max(1, int(round(SPACING / res)))
+    lattice = np.zeros_like(fits)
+    lattice[::step, ::step] = True
+    cand = np.vstack([np.array([s_cell]), np.argwhere(fits & lattice)])
+    sets = [s[reach.ravel()[s]] for s in visible_cells(free, res, cand)]
+    need = int(math.ceil(target * int(reach.sum())))
+    chosen = greedy_cover(sets, need, 0)
+    points = cand[chosen]
+    d = path_distances(fits, res, points)
+    d = np.where(np.isfinite(d), d, 1e6)
+    order = open_tour(d[0, 1:], d[1:, 1:])
+    length = float(d[0, 1 + order[0]] + sum(d[1 + a, 1 + b] for a, b in zip(order[:-1], order[1:], strict=True))
+                   if order else 0.0)
+    return Bound(world_spec, float(reach.sum()) * res * res, len(chosen), length, length / NAV_MAX_V)
+
+
+# -- CLI ---------------------------------------------------------------------------------------------------
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from homing.missions.commands._args import count
+
+    parser.add_argument("--worlds", nargs="+", metavar="WORLD",
+                        help="bundled names or YAML paths (default: as bench explore)")
+    parser.add_argument("--generated", type=count, default=3,
+                        help="also the first N generated plans of each kind (as bench explore)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from homing.benchmarks.common import print_table, write_json
+    from homing.benchmarks.explore import plan_kind, world_label, world_specs
+    from homing.sim.world import check_spec
+
+    worlds = world_specs(args.worlds, args.generated if not args.worlds else 0)
+    for w in worlds:
+        check_spec(w)
+    bounds = [covering_route(w) for w in worlds]
+    print_table(
+        f"Covering routes: the lidar ({LIDAR_RANGE:g} m) sees {TARGET:.0%} of the reachable free area; "
+        "time at the navigation speed limit",
+        ["world", "kind", "area m²", "viewpoints", "route m", "time s"],
+        [[world_label(b.world), plan_kind(world_label(b.world)), b.area, b.viewpoints, b.length, b.time]
+         for b in bounds],
+    )
+    write_json(args.json, {world_label(b.world): asdict(b) for b in bounds})
+    return 0
