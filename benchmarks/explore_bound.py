@@ -31,6 +31,9 @@ from dataclasses import asdict, dataclass
 
 import cv2
 import numpy as np
+from homing.robot.turtlebot import FOOTPRINT_RADIUS, NAV_MAX_V
+
+from homing.map_server import FREE, MapData
 
 LIDAR_RANGE = 6.0  # [m] RPLIDAR A1 as the thesis used it
 RAYS = 360  # lidar rays (1° steps)
@@ -97,42 +100,43 @@ def greedy_cover(sets: list[np.ndarray], need: int, first: int) -> list[int]:
 
 
 def covering_route(world_spec: str, target: float = TARGET) -> Bound:
-    """The route of the module doc for the world ``world_spec`` (a bundled name, YAML path or ``KIND:SEED``)."""
-    from homing.mapping.evaluate import reachable_free
-    from homing.mapping.frontier_tour import open_tour, path_distances
-    from homing.robot.turtlebot import FOOTPRINT_RADIUS, NAV_MAX_V
+    """The route of the module doc for the world ``world_spec`` (a bundled name, YAML path or ``KIND:SEED``),
+    from its start pose."""
     from homing.sim import load_world
 
-    from homing.map_server import FREE
-
     world = load_world(world_spec)
-    truth = world.map
+    area, viewpoints, length = route(world.map, (world.start.x, world.start.y), target)
+    return Bound(world_spec, area, viewpoints, length, length / NAV_MAX_V)
+
+
+def route(truth: MapData, start: tuple[float, float], target: float = TARGET) -> tuple[float, int, float]:
+    """The reachable free area [m²] of ``truth`` from ``start`` (x, y) [m], the number of viewpoints of the
+    covering route (module doc) and its length [m]."""
+    from homing.mapping.evaluate import reachable_free
+    from homing.mapping.frontier_tour import open_tour, path_distances, tour_length
+
     res = truth.resolution
-    start = (world.start.x, world.start.y)
     reach = reachable_free(truth, start)
     free = truth.grid == FREE
     clear = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * res
     fits = reach & (clear >= FOOTPRINT_RADIUS)
-    _, labels = cv2.connectedComponents(fits.astype(np.uint8), connectivity=8)
-    s_cell = (int((start[1] - truth.origin[1]) / res), int((start[0] - truth.origin[0]) / res))
+    # The start, moved onto the nearest cell where the footprint fits; viewpoints where it fits, joined to it.
     fr, fc = np.nonzero(fits)
-    j = int(np.argmin((fr - s_cell[0]) ** 2 + (fc - s_cell[1]) ** 2))
+    s_r, s_c = (start[1] - truth.origin[1]) / res, (start[0] - truth.origin[0]) / res
+    j = int(np.argmin((fr - s_r) ** 2 + (fc - s_c) ** 2))
     s_cell = (int(fr[j]), int(fc[j]))
+    _, labels = cv2.connectedComponents(fits.astype(np.uint8), connectivity=8)
     fits &= labels == labels[s_cell]
     step = max(1, int(round(SPACING / res)))
     lattice = np.zeros_like(fits)
     lattice[::step, ::step] = True
     cand = np.vstack([np.array([s_cell]), np.argwhere(fits & lattice)])
     sets = [s[reach.ravel()[s]] for s in visible_cells(free, res, cand)]
-    need = int(math.ceil(target * int(reach.sum())))
-    chosen = greedy_cover(sets, need, 0)
-    points = cand[chosen]
-    d = path_distances(fits, res, points)
+    chosen = greedy_cover(sets, int(math.ceil(target * int(reach.sum()))), 0)
+    d = path_distances(fits, res, cand[chosen])
     d = np.where(np.isfinite(d), d, 1e6)
     order = open_tour(d[0, 1:], d[1:, 1:])
-    length = float(d[0, 1 + order[0]] + sum(d[1 + a, 1 + b] for a, b in zip(order[:-1], order[1:], strict=True))
-                   if order else 0.0)
-    return Bound(world_spec, float(reach.sum()) * res * res, len(chosen), length, length / NAV_MAX_V)
+    return float(reach.sum()) * res * res, len(chosen), tour_length(order, d[0, 1:], d[1:, 1:])
 
 
 # -- CLI ---------------------------------------------------------------------------------------------------
