@@ -34,7 +34,7 @@ from homing.behaviours.keys import (
     TAGS_KEY,
 )
 from homing.behaviours.motion import FAILURE_KEY, FAILURE_PARAM, NavigateToPose, _ReportsFailure
-from homing.behaviours.registry import Param, register
+from homing.behaviours.registry import REQUIRED, Param, register
 from homing.navigation.dock_drive import DockDrive, DockState
 from homing.navigation.recovery import BackUp as BackUpMotion
 from homing.navigation.recovery import MotionStatus
@@ -44,6 +44,7 @@ from homing.robot import ChargingSource, Observation
 from py_trees.common import Status
 
 CHARGE_POLL = 10.0  # [s] adapter time between looks at the batteries while charging
+REST_POLL = 60.0  # [s] adapter time between looks at the charger while resting between rounds
 FOCUS_AHEAD = 0.5  # [s] the servo asks for every camera frame this far ahead, renewed every tick
 
 
@@ -267,8 +268,25 @@ class AutoDock(_ReportsFailure):
         return Status.RUNNING
 
 
+class _OnDock(_ReportsFailure):
+    """A leaf that waits on the charger, looking every ``poll`` [s]; FAILURE ``not_docked`` once off it."""
+
+    def __init__(self, name: str, poll: float, timeout: float, failure_key: str) -> None:
+        self.failure_key = failure_key
+        super().__init__(name, timeout=timeout)
+        self.poll = _positive("poll", poll)
+
+    def docked(self) -> Observation | None:
+        """This tick's observation while the charger reports the dock, else None (and the failure recorded)."""
+        obs = self.observation()
+        if not on_dock(obs):
+            self.fail("not_docked", "the charger no longer reports the dock")
+            return None
+        return obs
+
+
 @register("Charge")
-class Charge(_ReportsFailure):
+class Charge(_OnDock):
     """Stay on the dock until every battery reaches its undock level (``/energy/policy``) or reports full.
 
     Sends no command. Between looks at the batteries (every ``poll`` [s])
@@ -287,15 +305,12 @@ class Charge(_ReportsFailure):
 
     def __init__(self, name: str, poll: float = CHARGE_POLL, timeout: float = 0.0,
                  failure_key: str = FAILURE_KEY) -> None:
-        self.failure_key = failure_key
-        super().__init__(name, timeout=timeout)
-        self.poll = _positive("poll", poll)
+        super().__init__(name, poll, timeout, failure_key)
 
     def on_running(self) -> Status:
-        obs = self.observation()
-        if not on_dock(obs):
-            return self.fail("not_docked", "the charger no longer reports the dock")
-        assert obs is not None
+        obs = self.docked()
+        if obs is None:
+            return Status.FAILURE
         policy = self.read(ENERGY_KEY) or {}
         waiting = not_yet_charged(policy, obs)
         if policy and not waiting:
@@ -303,6 +318,47 @@ class Charge(_ReportsFailure):
             return Status.SUCCESS
         self.feedback_message = "charging: " + ", ".join(waiting) if waiting else "waiting for the energy policy"
         self.write(IDLE_KEY, obs.stamp + self.poll)
+        return Status.RUNNING
+
+
+@register("Rest")
+class Rest(_OnDock):
+    """Stay on the dock for ``seconds`` of adapter time, then SUCCEED: the robot waits for its next round.
+
+    A robot that has mapped its whole building has nothing new to find: it
+    goes out for a patrol round now and then (``missions/persistent.yaml``)
+    and spends the time between on its charger, as a security or inventory
+    robot does between rounds. Sends no command; between looks at the
+    charger (every ``poll`` [s]) it tells the runner the tree has nothing to
+    do (``/runner/idle_until``), so a resting robot costs almost nothing to
+    simulate. FAILURE ``not_docked`` if the charger stops reporting the dock
+    (someone lifted the robot off it).
+    """
+
+    PARAMS = (
+        Param("seconds", float, REQUIRED, "s", "how long to stay", minimum=0.0),
+        Param("poll", float, REST_POLL, "s", "adapter time between looks at the charger", above=0.0),
+        FAILURE_PARAM,
+    )
+    READS = (OBSERVATION_KEY,)
+    WRITES = (IDLE_KEY, "$failure_key")
+
+    def __init__(self, name: str, seconds: float, poll: float = REST_POLL, failure_key: str = FAILURE_KEY) -> None:
+        if not (math.isfinite(seconds) and seconds >= 0):
+            raise ValueError(f"seconds must be ≥ 0, not {seconds}")
+        super().__init__(name, poll, 0.0, failure_key)
+        self.seconds = float(seconds)  # [s]
+
+    def on_running(self) -> Status:
+        obs = self.docked()
+        if obs is None:
+            return Status.FAILURE
+        left = self.seconds - self.elapsed()
+        if self.has_run_for(self.seconds):
+            self.feedback_message = "rested"
+            return Status.SUCCESS
+        self.feedback_message = f"resting: next round in {left / 60.0:.0f} min"
+        self.write(IDLE_KEY, obs.stamp + min(left, self.poll))
         return Status.RUNNING
 
 

@@ -45,6 +45,7 @@ from homing.behaviours.base import (
 from homing.behaviours.keys import (
     CMD_VEL_KEY,
     EXPLORE_GOAL_KEY,
+    EXPLORED_KEY,
     GRID_KEY,
     MAP_TO_ODOM_KEY,
     NAVIGATOR_KEY,
@@ -95,7 +96,7 @@ class Explore(LongAction):
         TIMEOUT_PARAM,
     )
     READS = (OBSERVATION_KEY, NAVIGATOR_KEY, GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY)
-    WRITES = (CMD_VEL_KEY, GOAL_KEY)
+    WRITES = (CMD_VEL_KEY, GOAL_KEY, EXPLORED_KEY)
 
     def __init__(self, name: str, strategy: str = DEFAULT_STRATEGY, decide_period: float = DECIDE_PERIOD,
                  reach_radius: float = REACH_RADIUS, progress_timeout: float = 30.0, timeout: float = 0.0,
@@ -191,6 +192,7 @@ class Explore(LongAction):
             self._nav_goal = None
             self.write(GOAL_KEY, None)
             self.feedback_message = f"explored: {self._explorer().end_message()}"
+            self.write(EXPLORED_KEY, True)
             return Status.SUCCESS
         if step.stuck is not None:
             # Frontiers the robot could reach on the map are cut off on the costmap: not "explored" — a failure
@@ -209,6 +211,7 @@ class Explore(LongAction):
             self.navigator.set_goal(step.goal, xy_tolerance=self.reach_radius, yaw_tolerance=math.inf)
             self._nav_goal = step.goal
             self.write(GOAL_KEY, step.goal)
+            self.write(EXPLORED_KEY, False)
         return None
 
     def on_success(self) -> Status:
@@ -223,7 +226,8 @@ class Explore(LongAction):
 @register("NoFrontierLeft", kind="condition")
 class NoFrontierLeft(HomingBehaviour):
     """SUCCESS when the map has no frontier the robot's footprint can reach from where it is
-    (:func:`homing.mapping.reachable.frontier_report`: the map itself, not the costmap), else FAILURE.
+    (:func:`homing.mapping.reachable.frontier_report`: the map itself, not the costmap), else FAILURE
+    (also while nothing is mapped: an empty map has no frontier, and nothing is explored either).
 
     Recomputed when the grid changes, at most every ``period`` [s]; between
     times it answers from the last result, so it is cheap in a guard ticked
@@ -250,7 +254,11 @@ class NoFrontierLeft(HomingBehaviour):
         now = self.now()
         if key != self._key and now >= self._next:
             self._key, self._next = key, now + self.period
-            self.segments = len(frontier_report(grid, (pose.x, pose.y)).reachable)
-            self._answer = not self.segments
-        self.feedback_message = "no frontier left" if self._answer else f"{self.segments} reachable frontier(s)"
+            if not (grid.data == 0).any():  # nothing mapped yet is not a mapped building
+                self.segments, self._answer = -1, False
+            else:
+                self.segments = len(frontier_report(grid, (pose.x, pose.y)).reachable)
+                self._answer = not self.segments
+        self.feedback_message = ("no frontier left" if self._answer else "nothing mapped yet" if self.segments < 0
+                                 else f"{self.segments} reachable frontier(s)")
         return Status.SUCCESS if self._answer else Status.FAILURE

@@ -15,6 +15,7 @@ MAP_TO_ODOM_KEY = "/map/map_to_odom"  # Pose2
 LOCALIZED_KEY = "/map/localized"  # bool: False while the grid SLAM has lost the robot and searches the map
 NAVIGATOR_KEY = "/nav/navigator"  # homing.navigation.Navigator
 EXPLORE_GOAL_KEY = "/explore/goal"  # Pose2 in map or None, written by the Explore leaf
+EXPLORED_KEY = "/explore/explored"  # bool: the last Explore ended "explored" (True) or has gone for a frontier since
 TAGS_KEY = "/perception/tags"  # this tick's tag measurements in base_link
 FOCUS_KEY = "/perception/focus_until"  # [s] adapter time until which a leaf wants every camera frame looked at
 DOCK_KEY = "/nav/dock"  # Pose2: the docked robot's pose in map (refreshed whenever the base charges on the dock)

@@ -47,6 +47,11 @@ REBUILD_PERIOD = 5.0  # [s] adapter time between checks for a rebuild
 REBUILD_BATCH = 25  # scans drawn into the grid being rebuilt per tick
 TOUR_GOAL_KEY = "/tag_tour/goal"
 LANDMARKS_PERIOD = 2.0  # [s] tags-only mode: the tags' estimates are published at most this often
+# At ``image_rate`` a robot that has not moved this far (odometry) since its last look sees the same tags from
+# the same place: another look adds nothing to the graph but its cost (a charging robot looks at its dock's tag
+# for hours). Frames asked for by a servo (``/camera/focus``) are always looked at.
+STILL_XY = 0.02  # [m]
+STILL_THETA = math.radians(1.0)  # [rad]
 
 
 @register_service(
@@ -93,6 +98,7 @@ class TagSlamService:
             raise ValueError(f"image_rate must be ≥ 0 Hz, not {image_rate}")
         self.image_period = 1.0 / image_rate if image_rate > 0 else 0.0  # [s]
         self._next_detect = -math.inf
+        self._looked_from: Pose2 | None = None  # odometry pose at the last look at ``image_rate``
         self._published_updates = -1
         self._next_landmarks = -math.inf
         self.sessions = 1
@@ -134,10 +140,18 @@ class TagSlamService:
         if self.image_period <= 0.0 or obs.image is None:
             return True
         focus = self._get(FOCUS_KEY)
-        if (focus is not None and obs.stamp <= focus) or obs.stamp >= self._next_detect:
-            self._next_detect = obs.stamp + self.image_period
+        if focus is not None and obs.stamp <= focus:
             return True
-        return False
+        if obs.stamp < self._next_detect:
+            return False
+        self._next_detect = obs.stamp + self.image_period
+        last, here = self._looked_from, obs.odom.pose
+        if last is not None:
+            d = last.between(here)
+            if math.hypot(d.x, d.y) < STILL_XY and abs(d.theta) < STILL_THETA:
+                return False
+        self._looked_from = here
+        return True
 
     def _update_tags_only(self, obs: Observation, tags: list[Any]) -> None:
         pose, map_to_odom = self._get(POSE_KEY), self._get(MAP_TO_ODOM_KEY)
@@ -285,22 +299,26 @@ class NextWallView(HomingBehaviour):
     The search half of the tag tour: frontier exploration ends once the
     lidar has mapped the walls, long before the camera has seen them. Goals
     come from the robot's own grid (``/map/grid``) and pose; when every view
-    has been visited a new lap starts. FAILURE while no grid or pose is known
-    or the grid has no view pose.
+    has been visited a new lap starts — or, with ``one_lap``, the node FAILS
+    once (``lap done``: a patrol round is over) and the next tick starts the
+    new lap. FAILURE while no grid or pose is known or the grid has no view pose.
     """
 
     PARAMS = (
         Param("distance", float, 1.2, "m", "how far from the wall the view pose is", above=0.0),
         Param("spacing", float, 2.0, "m", "between view poses along a wall", above=0.0),
         Param("goal_key", str, TOUR_GOAL_KEY, doc="blackboard key the Pose2 goal is written to"),
+        Param("one_lap", bool, False, doc="FAIL once at the end of each lap (a patrol round) instead of going on"),
     )
     READS = (GRID_KEY, POSE_KEY)
     WRITES = ("$goal_key",)
 
-    def __init__(self, name: str, distance: float = 1.2, spacing: float = 2.0, goal_key: str = TOUR_GOAL_KEY) -> None:
+    def __init__(self, name: str, distance: float = 1.2, spacing: float = 2.0, goal_key: str = TOUR_GOAL_KEY,
+                 one_lap: bool = False) -> None:
         self.goal_key = goal_key
         super().__init__(name)
         self.distance, self.spacing = float(distance), float(spacing)  # [m]
+        self.one_lap = bool(one_lap)
         self.visited: list[Pose2] = []
         self.laps = 0
 
@@ -315,6 +333,9 @@ class NextWallView(HomingBehaviour):
         goal = next_view(views, here, self.visited, self.spacing / 2)
         if goal is None and views:
             self.visited, self.laps = [], self.laps + 1
+            if self.one_lap:
+                self.feedback_message = f"lap {self.laps} done"
+                return Status.FAILURE
             goal = next_view(views, here, self.visited, self.spacing / 2)
         if goal is None:
             self.feedback_message = "no wall to look at"

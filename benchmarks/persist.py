@@ -90,11 +90,19 @@ class Life:
         self.stuck: str | None = None
         self.next_sample = SAMPLE
         self.next_progress = 0.0
+        self.states: dict[str, list[float]] = {}  # mission state -> [simulated s, wall s] spent in it
+        self._last: tuple[float, float, str] | None = None  # (sim time, wall time, state) at the last call
 
     def __call__(self, runner: Any) -> None:
         from homing.mapping.evaluate import cell_agreement
 
         obs, now = runner.observation, runner.now
+        wall, state = time.perf_counter(), str(runner.read("/mission/state") or "Starting")
+        if self._last is not None:
+            spent = self.states.setdefault(self._last[2], [0.0, 0.0])
+            spent[0] += now - self._last[0]
+            spent[1] += wall - self._last[1]
+        self._last = (now, wall, state)
         if obs is not None:
             self.lowest["base"] = min(self.lowest["base"], obs.battery.percent)
             if obs.computer_battery is not None:
@@ -206,6 +214,10 @@ def run(args: argparse.Namespace) -> int:
     parts = sorted(out["timing"].items(), key=lambda kv: -kv[1])
     print_table("where the wall time went (the runner's timing)", ["part", "% of ticks", "ms per sim min"],
                 [[k, 100 * v / total, 1e3 * v / (sim / 60.0)] for k, v in parts])
+    states = sorted(life.states.items(), key=lambda kv: -kv[1][1])
+    print_table("where the wall time went, by mission state", ["state", "% of sim time", "% of wall", "wall ms per sim s"],
+                [[k, 100 * v[0] / max(sim, 1e-9), 100 * v[1] / max(wall, 1e-9), 1e3 * v[1] / max(v[0], 1e-9)]
+                 for k, v in states])
     if args.plot:
         _plot(args.plot, rss)
     write_json(args.json, {
@@ -215,7 +227,7 @@ def run(args: argparse.Namespace) -> int:
         "rss_growth_after_1h_pct": growth, "rss_mb": rss, "rtf": sim / wall, "wall_s": wall,
         "map_agreement_min": min(agree, default=math.nan), "map_agreement": life.agreement,
         "area_mapped_m2": life.area, "timing_s": out["timing"], "days": args.days, "world": args.world,
-        "seed": args.seed,
+        "seed": args.seed, "states_s": {k: {"sim": v[0], "wall": v[1]} for k, v in life.states.items()},
     })
     return 0
 

@@ -45,7 +45,7 @@ HISTORY = 2.0  # [s] of odometry kept to look up the pose at a scan's stamp
 # this long has passed (gmapping's linearUpdate / angularUpdate / temporalUpdate, 1 m / 0.5 rad / off there:
 # its particles are costly; Hector SLAM updates its map every 0.4 m / 0.9 rad). Between them odometry carries
 # the pose, which it does to millimetres over a few centimetres; a standing robot still refreshes its map.
-UPDATE_TRAVEL = 0.1  # [m]
+UPDATE_TRAVEL = 0.2  # [m]
 UPDATE_TURN = 0.1  # [rad]
 UPDATE_PERIOD = 1.0  # [s]
 # Lost: a scan whose end points on observed cells (at least MISFIT_POINTS of them: the rest may be new ground) fit

@@ -302,8 +302,13 @@ class Costmap:
         near = rng <= self.params.obstacle_max_range
         ends = np.column_stack([sensor.x + rng * np.cos(ang), sensor.y + rng * np.sin(ang)])[near]
         self._mark(ends)
-        if not np.array_equal(before, self.obstacles[r0:r1, c0:c1]):
-            self._inflate(box)
+        # Only a change of the lethal cells changes the cost: a mark on a wall the static layer already has
+        # changes nothing, and the inflation is redone round the cells that did change, not the whole window.
+        changed = (before != self.obstacles[r0:r1, c0:c1]) & (self.static[r0:r1, c0:c1] != LETHAL)
+        if changed.any():
+            rows = np.flatnonzero(changed.any(axis=1))
+            cols = np.flatnonzero(changed.any(axis=0))
+            self._inflate((r0 + int(rows[0]), r0 + int(rows[-1]) + 1, c0 + int(cols[0]), c0 + int(cols[-1]) + 1))
 
     def _window(self, x: float, y: float, reach: float) -> tuple[int, int, int, int]:
         """(r0, r1, c0, c1): the cells within ``reach`` [m] of (x, y) [m], clipped to the costmap."""

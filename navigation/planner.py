@@ -24,6 +24,7 @@ Failures are typed (:class:`StartOccupied`, :class:`GoalOccupied`,
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Protocol
 
@@ -136,13 +137,20 @@ def _nearest_free(costmap: Costmap, weights: np.ndarray, r: int, c: int,
     return int(rr.ravel()[i]), int(cc.ravel()[i])
 
 
+@functools.lru_cache(maxsize=4096)
+def _fractions(n: int) -> np.ndarray:
+    """``np.linspace(0, 1, n)``, kept: the path smoother asks for the same few lengths thousands of times."""
+    t = np.linspace(0.0, 1.0, n)
+    t.flags.writeable = False
+    return t
+
+
 def _segment_cells(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Cells (rows, cols) a straight segment between cell-coordinate points crosses (sampled at ¼ cell)."""
-    n = max(2, int(math.ceil(4.0 * float(np.hypot(*(b - a))))) + 1)
-    t = np.linspace(0.0, 1.0, n)[:, None]
-    p = a[None, :] + t * (b - a)[None, :]
-    rc = np.floor(p + 0.5).astype(np.int64)
-    return rc[:, 0], rc[:, 1]
+    ar, ac = float(a[0]), float(a[1])
+    dr, dc = float(b[0]) - ar, float(b[1]) - ac
+    t = _fractions(max(2, int(math.ceil(4.0 * math.hypot(dr, dc))) + 1))
+    return np.floor(ar + 0.5 + t * dr).astype(np.intp), np.floor(ac + 0.5 + t * dc).astype(np.intp)
 
 
 def shortcut(cells: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -176,7 +184,8 @@ def shortcut(cells: np.ndarray, weights: np.ndarray) -> np.ndarray:
     def ok(i: int, j: int) -> bool:
         r, c = _segment_cells(pts[i], pts[j])
         w = weights[r, c]
-        return bool(np.all(w <= max(stretch_max(i, j), w[0], w[-1]) + 1e-9) and np.isfinite(w).all())
+        top = float(w.max())  # one reduction; a blocked cell (inf) anywhere, ends included, refuses the segment
+        return top != math.inf and top <= max(stretch_max(i, j), float(w[0]), float(w[-1])) + 1e-9
 
     out = [0]
     i = 0

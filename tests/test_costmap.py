@@ -110,3 +110,29 @@ def test_rotated_scan_lands_in_the_map_frame() -> None:
     cm.set_static(np.zeros((80, 80), dtype=np.int8), RES, (0.0, 0.0))
     cm.update_scan(_scan_with_point_ahead(1.0), Pose2(2.0, 1.0, math.pi / 2))  # facing +y
     assert cm.cost_at(np.array([[2.0, 2.0]]))[0] == LETHAL
+
+
+def test_updating_after_each_scan_gives_the_costmap_a_full_recomputation_gives() -> None:
+    # The scan update re-inflates only round the lethal cells that changed; the result must be the same
+    # as inflating the whole map from the layers, scan after scan (random rooms, poses and clutter).
+    rng = np.random.default_rng(7)
+    g = np.zeros((120, 160), dtype=np.int8)
+    g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = 100
+    g[60, 20:90] = 100  # an inner wall the scans' marks partly fall on
+    cm = Costmap()
+    cm.set_static(g, RES, (0.0, 0.0))
+    n = 360
+    for k in range(25):
+        pose = Pose2(float(rng.uniform(1.0, 7.0)), float(rng.uniform(0.5, 2.5)), float(rng.uniform(-3, 3)))
+        ranges = rng.uniform(0.3, 5.0, n).astype(np.float32)
+        ranges[rng.random(n) < 0.2] = np.inf  # no return
+        scan = Scan(stamp=0.2 * (k + 1), angle_min=-math.pi, angle_increment=2 * math.pi / n, ranges=ranges,
+                    range_min=0.15, range_max=6.0)
+        cm.update_scan(scan, pose)
+        cost, clearance = cm.cost.copy(), cm.clearance.copy()
+        cm._inflate()  # the whole map from the layers
+        horizon = cm._horizon()
+        assert np.array_equal(cost, cm.cost), f"scan {k}: cost differs from a full inflation"
+        near = cm.clearance < horizon
+        assert np.allclose(clearance[near], cm.clearance[near]), f"scan {k}: clearance differs"
+        assert (clearance[~near] >= horizon - 1e-6).all()

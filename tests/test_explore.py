@@ -80,7 +80,8 @@ class _Robot:
 def _board(grid: OccupancyGrid, nav: Any, pose: Pose2) -> py_trees.blackboard.Client:
     py_trees.blackboard.Blackboard.clear()
     bb = py_trees.blackboard.Client(name="test")
-    for key in ("/robot/observation", "/nav/navigator", "/map/grid", "/map/pose", "/map/map_to_odom", GOAL_KEY):
+    for key in ("/robot/observation", "/nav/navigator", "/map/grid", "/map/pose", "/map/map_to_odom", GOAL_KEY,
+                "/explore/explored"):
         bb.register_key(key=key, access=Access.WRITE)
     bb.set("/robot/observation", object())  # the fake navigator never looks at it
     bb.set("/nav/navigator", nav)
@@ -156,9 +157,11 @@ def test_explore_succeeds_when_no_frontier_is_left_and_the_condition_agrees() ->
     g[20, 20:100] = g[79, 20:100] = OCCUPIED
     g[20:80, 20] = g[20:80, 99] = OCCUPIED
     closed = OccupancyGrid.from_map_data(MapData(g, RES, (-1.0, -1.0, 0.0)))
-    for grid, done in ((closed, True), (_two_openings(), False)):
+    # an empty map has no frontier, but nothing is explored either (the persistent mission rests on "done")
+    empty = OccupancyGrid.from_map_data(MapData(np.full((100, 120), UNKNOWN, dtype=np.int8), RES, (-1.0, -1.0, 0.0)))
+    for grid, done in ((closed, True), (_two_openings(), False), (empty, False)):
         nav = _FailingNavigator(grid, NoPathFound("x"))
-        _board(grid, nav, Pose2(1.0, 1.5, 0.0))
+        bb = _board(grid, nav, Pose2(1.0, 1.5, 0.0))
         robot = _Robot()
         cond = NoFrontierLeft("NoFrontierLeft")
         cond.setup(robot=robot, seed=0)
@@ -168,6 +171,7 @@ def test_explore_succeeds_when_no_frontier_is_left_and_the_condition_agrees() ->
             leaf = Explore("Explore")
             leaf.setup(robot=robot, seed=0)
             assert _tick(leaf, robot) == Status.SUCCESS and not nav.goals
+            assert bb.get("/explore/explored") is True  # what the persistent mission rests on
 
 
 def test_grid_slam_service_grid_agrees_with_the_truth(tmp_path: Path) -> None:

@@ -48,3 +48,22 @@ def test_the_energy_guard_preempts_exploration_and_the_robot_charges_back(tmp_pa
         assert log.lowest["computer"] > computer["home"] - 1.0  # never run down below the threshold
     finally:
         robot.close()
+
+
+def test_once_the_building_is_mapped_a_round_ends_the_trip_and_the_robot_rests_on_its_dock() -> None:
+    rest = 600.0
+    log, robot, runner = live("lab", until=3000.0, overrides={"session": "30 min", "rest": f"{rest:g} s"})
+    try:
+        seq = log.sequence()
+        assert seq[:3] == ["Undocking", "Exploring", "Patrolling"]
+        # The patrol round ended the trip, long before the session's 30 minutes.
+        assert log.entered("MapHome")[0] < log.entered("Undocking")[0] + 30 * 60 - 120
+        # Home, on the charger (judged by the dock's contacts), it rests for `rest`, then goes out again.
+        resting = log.entered("Resting")
+        assert resting and log.docked_at and resting[0] >= log.docked_at[0]
+        again = [t for t in log.entered("Undocking") if t > resting[0]]
+        assert again and again[0] - resting[0] == pytest.approx(rest, abs=15.0)
+        k = seq.index("Resting")
+        assert seq[k + 1:k + 3] == ["Undocking", "Patrolling"]  # the next trip: nothing to explore, a round
+    finally:
+        robot.close()

@@ -87,3 +87,43 @@ def test_cli_record_then_a_log_cut_mid_write_replays_up_to_the_cut(tmp_path, cap
     expect = replay_slam(full, until=cut.end)
     assert got["landmarks"] == {str(k): [v.x, v.y, v.theta] for k, v in expect.landmarks().items()}
     assert got["keyframes"] == len(expect.keyframes)
+
+
+def test_at_image_rate_a_standing_robot_looks_once_and_a_moving_one_again() -> None:
+    # A charging robot faces its dock's tag for hours: once it has looked from where it stands, another look
+    # adds nothing (and costs a render and a detection). Moving, it looks at image_rate again.
+    import py_trees
+    from homing.behaviours.keys import TAGS_KEY
+    from homing.behaviours.tag_slam_service import TagSlamService
+    from py_trees.common import Access
+
+    py_trees.blackboard.Blackboard.clear()
+    world = sim.load_world("lab")
+    robot = sim.SimRobot(world, seed=3)
+    try:
+        robot.set_truth_pose(world.staging_pose(1.0))  # 1 m in front of the dock, facing its tag
+        robot.step(0.4)  # the camera's next frame is taken there
+        service = TagSlamService(grid=False, image_rate=1.0)
+        client = py_trees.blackboard.Client(name="service:tag_slam")
+        for key in TagSlamService.writes:
+            client.register_key(key=key, access=Access.WRITE)
+        service.setup(robot, client)
+        looks: list[int] = []
+        detect = service.detector.detect
+        service.detector.detect = lambda frame: looks.append(1) or detect(frame)  # type: ignore[method-assign]
+
+        def run(seconds: float, v: float) -> list[int]:
+            seen: list[int] = []
+            robot.command(v, 0.0)
+            for _ in range(int(round(seconds / 0.2))):
+                robot.step(0.2)
+                service.update(robot.observe())
+                seen.append(len(service.bb.get(TAGS_KEY) or []))
+            return seen
+
+        standing = run(10.0, 0.0)
+        assert len(looks) == 1 and max(standing) >= 1  # one look, and it saw the dock's tag
+        run(4.0, -0.05)  # backing away, 0.2 m: looks at 1 Hz again
+        assert 3 <= len(looks) - 1 <= 5
+    finally:
+        robot.close()
