@@ -1,4 +1,4 @@
-"""The physical bound on exploration time: a short route from the start from which the lidar sees 95 % of the reachable free area, driven at the navigation speed limit (ground truth; evaluation only).
+"""The physical bound on exploration time: a short route from the start from which the lidar sees 95 per cent of the reachable free area, driven at the navigation speed limit (ground truth; evaluation only).
 
 No strategy, however clever, explores faster than a robot that knows the
 floor plan beforehand and drives the shortest route from which its lidar
@@ -19,7 +19,7 @@ map, for a world of ``homing bench explore``:
 Greedy cover and tour are heuristics, so the route is a little longer than
 the best one, but the robot that drives it knows everything the explorer has
 to find out: read its time as what the building itself costs, the floor
-under a strategy's time to 95 %.
+under a strategy's time to 95 per cent.
 """
 
 from __future__ import annotations
