@@ -15,7 +15,11 @@ that:
 3. the shortest open tour (it need not come back) from the robot through
    every goal is found by nearest-neighbour construction improved by 2-opt
    and or-opt moves (:func:`open_tour`; exact, by Held-Karp, up to ``EXACT_GOALS``);
-4. the robot drives to the tour's first goal. The tour is planned again
+4. which goal comes first also weighs what it opens: the way to it counts
+   ``FIRST_GAIN`` × its frontier's length less (explore_lite's gain term, in
+   the tour's metres). In a hall the long frontier at the lidar's reach
+   opens the most and the crumbs behind a chair vanish on the way;
+5. the robot drives to the tour's first goal. The tour is planned again
    whenever it is asked (every few seconds: frontiers grow and vanish as the
    lidar sees), but the current first goal is kept unless a tour without it
    first is shorter by ``HYSTERESIS_MIN`` m, or by ``HYSTERESIS`` of the
@@ -55,6 +59,7 @@ HYSTERESIS_MIN = 3.0  # [m] the current first goal is dropped only for a tour th
 HYSTERESIS = 0.25  # ... or this fraction of the way to the current goal, if more
 EXACT_GOALS = 9  # up to this many goals the tour is the shortest (Held-Karp); beyond, local search
 MAX_GOALS = 40
+FIRST_GAIN = 1.0  # metres of way to the first goal one metre of its frontier is worth
 DOOR_CLEARANCE = 0.7  # [m] a passage narrower than twice this (doors are 0.8-1.2 m; corridors 1.5 m and more) ...
 DOOR_SPAN = 0.3  # [m] how far across and along a door its clearance is compared (more than a wall's thickness)
 DOOR_REACH = 0.6  # [m] a door is the free space this close to its middle line (half the widest door)
@@ -274,10 +279,11 @@ def keep_first(start: np.ndarray, between: np.ndarray, best: list[int], current:
 
 
 def plan(robot: tuple[int, int], grid: np.ndarray, resolution: float, passable: np.ndarray, goals: np.ndarray,
-         start: np.ndarray, current: int | None = None) -> list[int]:
+         start: np.ndarray, current: int | None = None, lengths: np.ndarray | None = None) -> list[int]:
     """The order to visit ``goals`` (K, 2) (row, col) in, from the ``robot`` cell: ``grid`` (H, W) the map_server
     grid (for its doors), ``passable`` (H, W) bool the cells the planner reaches, ``start`` (K,) [m] the planner's
-    travel distance to each goal (finite), ``current`` the goal now driven to (index or None). At most
+    travel distance to each goal (finite), ``current`` the goal now driven to (index or None), ``lengths`` (K,)
+    [m] the goals' frontier lengths (the first goal's way counts ``FIRST_GAIN`` × its length less). At most
     ``MAX_GOALS`` goals, the nearest, are ordered; the rest follow, nearest first."""
     near = np.argsort(start, kind="stable")
     head, tail = near[:MAX_GOALS], near[MAX_GOALS:]
@@ -287,6 +293,8 @@ def plan(robot: tuple[int, int], grid: np.ndarray, resolution: float, passable: 
     # distances to both added: the triangle's bound.
     s = start[head]
     s_t = np.where(np.isfinite(d[0, 1:]), d[0, 1:], s)
+    if lengths is not None:
+        s_t = s_t - FIRST_GAIN * lengths[head]
     between = np.where(np.isfinite(d[1:, 1:]), d[1:, 1:], s[:, None] + s[None, :])
     cur = None
     if current is not None and current in head:

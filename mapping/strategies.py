@@ -24,18 +24,21 @@ choose again live in :mod:`homing.mapping.explorer`, shared by all.
   then plans to the centroid; here the centroid is snapped to the nearest
   reachable cell within ``CENTROID_TOLERANCE`` (else the frontier is skipped,
   as move_base would abort it and explore_lite blacklist it).
-- ``frontier_travel`` (default) — explore_lite's frontiers (down to
-  ``CRUMB_SIZE``, not its 0.75 m) and centroid goals, visited in the order
-  of the shortest open tour through all of them by path distance, a door
-  passed costing a toll (:mod:`homing.mapping.frontier_tour`), re-planned
-  every 3 s as explore_lite replans, keeping its current goal unless another
-  order is clearly shorter (hysteresis). A one-step rule — explore_lite's
-  cost, whose distance term is 0.15 per metre at 5 cm cells and hardly
-  counts, or the nearest frontier — sends the robot back for the door it
-  passed or across the building for the largest frontier; the tour passes
-  each room on the way and finishes a room before leaving it. Small
-  frontiers are in the tour from the start (explore_lite drops them and
-  ends early; left for the end, each costs the way back to it).
+- ``frontier_travel`` (default) — explore_lite's frontiers and centroid
+  goals, visited in the order of the shortest open tour through all of them
+  by path distance, a door passed costing a toll
+  (:mod:`homing.mapping.frontier_tour`), re-planned every 3 s as
+  explore_lite replans, keeping its current goal unless another order is
+  clearly shorter (hysteresis); the way to the first goal counts its
+  frontier's length less, so in a hall the long frontier goes first. A
+  one-step rule — explore_lite's cost, whose distance term is 0.15 per metre
+  at 5 cm cells and hardly counts, or the nearest frontier — sends the robot
+  back for the door it passed or across the building for the largest
+  frontier; the tour passes each room on the way and finishes a room before
+  leaving it. Once no frontier of explore_lite's minimum size is left, ones
+  down to ``CRUMB_SIZE`` are toured, so the run does not end short of the
+  whole map (explore_lite's "ends early"). (Touring them from the start was
+  tried: slower in halls, where the long frontiers reveal them anyway.)
 - ``gain_rate`` — information gain per travel time (the default before
   ``frontier_travel``: better in worlds of many small rooms, slower in
   halls, where it leaves a hall half-seen for a bigger gain elsewhere and
@@ -82,7 +85,7 @@ GAIN_SCALE = 1.0  # explore_lite launch default
 MIN_FRONTIER_SIZE = 0.75  # [m] explore_lite launch default
 CENTROID_TOLERANCE = 1.0  # [m] how far a centroid goal may be moved to a reachable cell
 SAME_FRONTIER = 1.5  # [m] frontier_travel: a frontier passing this near the current goal is the one driven to
-CRUMB_SIZE = 0.3  # [m] the smallest frontier frontier_travel visits
+CRUMB_SIZE = 0.3  # [m] frontier_travel visits frontiers this small once none of MIN_FRONTIER_SIZE is left
 GAIN_RADIUS = 3.0  # [m] unknown area counted around a goal: half the lidar's 6 m range
 GAIN_POOL = 4  # cells pooled per side when counting unknown area (speed)
 TRAVEL_SPEED = 0.8 * NAV_MAX_V  # [m/s] average speed assumed along a path
@@ -306,21 +309,24 @@ class FrontierTravel(ExploreLite):
     name = "frontier_travel"
     ends_without_goal = False  # homing's rule: the map decides when it is done (homing.mapping.explorer)
 
-    def __init__(self, crumb_size: float = CRUMB_SIZE) -> None:
-        super().__init__()
+    def __init__(self, min_frontier_size: float = MIN_FRONTIER_SIZE, crumb_size: float = CRUMB_SIZE) -> None:
+        super().__init__(min_frontier_size=min_frontier_size)
         self.crumb_size = crumb_size
         self.tour: list[tuple[int, int]] = []  # the goals in the order of the last tour planned (for pictures)
 
     def goals(self, ctx: GoalContext) -> list[tuple[FrontierSegment, tuple[int, int]]]:
-        """Each frontier down to ``crumb_size`` with its goal. Small ones are in the tour from the start, not
-        left until the large ones are done: one passed on the way costs nothing, one left costs the way back."""
+        """Each frontier of explore_lite's minimum size with its goal; when none is left, those down to
+        ``crumb_size`` (rather than stop short of the whole map: explore_lite's "ends early")."""
         free = _goal_cells(ctx)
-        out = []
-        for seg in self.frontiers(ctx, self.crumb_size):
-            cell = _centroid_goal(seg, ctx, free)
-            if cell is not None:
-                out.append((seg, cell))
-        return out
+        for size in (self.min_frontier_size, self.crumb_size):
+            out = []
+            for seg in self.frontiers(ctx, size):
+                cell = _centroid_goal(seg, ctx, free)
+                if cell is not None:
+                    out.append((seg, cell))
+            if out:
+                return out
+        return []
 
     def choose(self, ctx: GoalContext) -> GoalChoice | None:
         goals = self.goals(ctx)
@@ -338,7 +344,9 @@ class FrontierTravel(ExploreLite):
             if min(near) * ctx.resolution <= SAME_FRONTIER:
                 current = int(np.argmin(near))
         robot = (int(round(ctx.robot_cell[0])), int(round(ctx.robot_cell[1])))
-        order = frontier_tour.plan(robot, ctx.grid, ctx.resolution, np.isfinite(ctx.distance), cells, start, current)
+        lengths = np.array([seg.size * ctx.resolution for seg, _ in goals])
+        order = frontier_tour.plan(robot, ctx.grid, ctx.resolution, np.isfinite(ctx.distance), cells, start, current,
+                                   lengths)
         self.tour = [goals[i][1] for i in order]
         seg, cell = goals[order[0]]
         return GoalChoice(cell, seg, [s for s, _ in goals], -float(start[order[0]]))

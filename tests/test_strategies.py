@@ -164,7 +164,7 @@ def test_frontier_travel_takes_the_pocket_on_the_way_to_the_corridors_open_end()
     assert np.isfinite(ctx.distance[choice.cell])
 
 
-def test_frontier_travel_visits_frontiers_smaller_than_explore_lites_minimum():
+def test_frontier_travel_visits_frontiers_smaller_than_explore_lites_minimum_once_no_other_is_left():
     """A closed room with one 0.9 m gap onto unknown, of which 0.5 m is frontier the robot can reach (its
     footprint keeps it 0.19 m off each side): explore_lite (min 0.75 m) says done, frontier_travel goes."""
     g = np.full((60, 60), OCCUPIED, dtype=np.int8)
