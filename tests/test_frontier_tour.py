@@ -219,3 +219,14 @@ def test_plan_orders_goals_beyond_the_cap_after_the_rest(monkeypatch):
     start = (goals[:, 1] - 10) * RES
     order = frontier_tour.plan((20, 10), g, RES, g == FREE, goals, start)
     assert [int(goals[i, 1]) for i in order] == [50, 100, 200, 300, 390]
+
+
+def test_the_first_goal_weighs_the_frontier_it_opens():
+    """In an open hall, a 0.8 m crumb 1 m west of the robot and a 6 m frontier 3 m east: by distance alone the crumb
+    comes first (1 + 4 m against 3 + 4 m); counting FIRST_GAIN × length off the way to the first goal, the long
+    frontier does (1 - 0.8 + 4 against 3 - 6 + 4 m), as explore_lite's gain would have it."""
+    g = np.full((100, 200), FREE, np.int8)
+    goals = np.array([[50, 80], [50, 160]])
+    start = np.array([1.0, 3.0])
+    assert frontier_tour.plan((50, 100), g, RES, g == FREE, goals, start) == [0, 1]
+    assert frontier_tour.plan((50, 100), g, RES, g == FREE, goals, start, lengths=np.array([0.8, 6.0])) == [1, 0]
