@@ -108,7 +108,8 @@ def _short(value: Any, width: int = 24, live: bool = False) -> str:
         return pose_text(value)[:width]
     if live and isinstance(value, numbers.Real) and not isinstance(value, numbers.Integral):  # numpy's floats too
         # a reading changes every tick: hundredths are plenty on a dashboard
-        s = f"{float(value):.2f}".rstrip("0").rstrip(".") if abs(value) < 1e6 else f"{float(value):.3g}"
+        v = float(value)
+        s = f"{v:.2f}".rstrip("0").rstrip(".") if abs(v) < 1e6 else f"{v:.3g}"
         s = "0" if s == "-0" else s
     else:
         s = f"{value:g}" if isinstance(value, float) else repr(value) if isinstance(value, str) else str(value)
