@@ -26,6 +26,7 @@ and every ``FACTS_PERIOD`` of adapter time a line of the same facts.
 
 from __future__ import annotations
 
+import numbers
 import time
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, TextIO
@@ -101,10 +102,17 @@ def label(node: Behaviour, mission: CompiledMission, *, status: bool = True, par
     return text
 
 
-def _short(value: Any, width: int = 24) -> str:
+def _short(value: Any, width: int = 24, live: bool = False) -> str:
+    """``value`` in at most ``width`` characters: a parameter as written, or (``live``) a blackboard reading."""
     if all(hasattr(value, a) for a in ("x", "y", "theta")):  # a Pose2: centimetres and whole degrees
         return pose_text(value)[:width]
-    s = f"{value:g}" if isinstance(value, float) else repr(value) if isinstance(value, str) else str(value)
+    if live and isinstance(value, numbers.Real) and not isinstance(value, numbers.Integral):  # numpy's floats too
+        # a reading changes every tick: hundredths are plenty on a dashboard
+        v = float(value)
+        s = f"{v:.2f}".rstrip("0").rstrip(".") if abs(v) < 1e6 else f"{v:.3g}"
+        s = "0" if s == "-0" else s
+    else:
+        s = f"{value:g}" if isinstance(value, float) else repr(value) if isinstance(value, str) else str(value)
     return s if len(s) <= width else s[: width - 1] + "…"
 
 
@@ -266,7 +274,7 @@ class LiveView:
         for key in keys:
             line = Text()
             line.append(f"{key} = ", style="cyan")
-            line.append(_short(runner.read(key), max(8, width - len(key) - 4)))
+            line.append(_short(runner.read(key), max(8, width - len(key) - 4), live=True))
             parts.append(line)
         return Group(*parts)
 

@@ -35,7 +35,8 @@ def test_each_fault_is_survived_and_the_robot_docks_after_it() -> None:
             robot.faults = (*robot.faults, Fault(name, at=t, **kw))
             injected[name] = t
 
-    log, robot, _ = live("lab", until=2400.0, seed=3, overrides={"session": "70 s"}, stop_after_cycles=5,
+    log, robot, _ = live("lab", until=2400.0, seed=3, overrides={"session": "70 s", "rest": "30 s"},
+                         stop_after_cycles=5,
                          on_state=inject)
     try:
         assert set(injected) == {name for name, _ in plan.values()}, injected
@@ -52,7 +53,8 @@ def test_the_map_follows_a_changing_world_and_docking_still_succeeds() -> None:
     # A parcel left in the west room's middle, and a chair moved across it, while the robot patrols.
     parcel = Change("box", 240.0, math.inf, 2.0, 4.5, 0.3, (0.4, 0.4))
     moved = chair(240.0, Pose2(3.5, 6.5, 0.0), Pose2(1.6, 7.3, 0.5))
-    log, robot, runner = live(world, until=1200.0, seed=2, overrides={"session": "180 s"}, stop_after_cycles=2,
+    log, robot, runner = live(world, until=1200.0, seed=2, overrides={"session": "180 s", "rest": "30 s"},
+                              stop_after_cycles=2,
                               robot_kwargs={"changes": [parcel, *moved]})
     try:
         assert log.cycles == 2 and robot.charging and log.docked_at[-1] > 240.0

@@ -167,3 +167,13 @@ def test_without_the_view_the_same_facts_are_plain_lines(tmp_path: Path) -> None
     stamps = [float(line[1:].split(" s]")[0]) for line in facts]
     assert stamps[:3] == [0.0, 30.0, 60.0] and stamps[-1] == 65.0, stamps  # every 30 s and at the end
     assert all("state " in line and "base 77%" in line for line in facts[1:]), facts
+
+
+def test_blackboard_numbers_show_to_the_centimetre_whatever_their_float_type() -> None:
+    import numpy as np
+    from homing.missions.view import _short
+
+    assert _short(np.float32(7.123456), live=True) == "7.12"  # /energy/distance_home came as 7.1234565
+    assert _short(12.0, live=True) == "12" and _short(-0.001, live=True) == "0" and _short(0.5, live=True) == "0.5"
+    assert _short(3, live=True) == "3" and _short(True, live=True) == "True" and _short("Docked", live=True) == "'Docked'"
+    assert _short(1.5707963) == "1.5708"  # a parameter shows as written (6 digits)
