@@ -64,6 +64,7 @@ def test_once_the_building_is_mapped_a_round_ends_the_trip_and_the_robot_rests_o
         again = [t for t in log.entered("Undocking") if t > resting[0]]
         assert again and again[0] - resting[0] == pytest.approx(rest, abs=15.0)
         k = seq.index("Resting")
-        assert seq[k + 1:k + 3] == ["Undocking", "Patrolling"]  # the next trip: nothing to explore, a round
+        # the next trip: a frontier given up last trip may be tried again, then a round
+        assert seq[k + 1] == "Undocking" and "Patrolling" in seq[k + 2:]
     finally:
         robot.close()
