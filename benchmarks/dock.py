@@ -56,7 +56,7 @@ NO_RECOVERY = """
         - GoHome: {staging_distance: 1.0, timeout: 10 min}
         - ServoToStaging: {tag: $dock_tag, staging_distance: 1.0, timeout: 60 s}
         - MissionState: {state: AutoDocking}
-        - AutoDock: {timeout: 90 s}
+        - AutoDock: {timeout: 90 s, approach: 1.0}
 """
 RECOVERY = """
     recovery:

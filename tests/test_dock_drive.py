@@ -5,7 +5,15 @@ from __future__ import annotations
 import math
 
 import pytest
-from homing.navigation.dock_drive import FULL_TURN, SETTLE, DockDrive, DockState
+from homing.navigation.dock_drive import (
+    APPROACH_V,
+    FULL_TURN,
+    NEAR_V,
+    SETTLE,
+    SLOW_ZONE,
+    DockDrive,
+    DockState,
+)
 from homing.robot import Bumpers, DockIR, Pose2
 from homing.robot.types import IR
 from homing.sim import SimRobot, load_world
@@ -20,12 +28,12 @@ def lab():
 
 
 def dock_from(world, start: Pose2, seed: int = 1, limit: float = 150.0,
-              trace: bool = False) -> tuple[DockDrive, SimRobot, float]:
+              trace: bool = False, approach: float = 0.0) -> tuple[DockDrive, SimRobot, float]:
     """Run one docking attempt from ``start``; returns the drive, the robot (open) and the time taken [s]."""
     robot = SimRobot(world, seed=seed, camera=False, start=start)
     drive = DockDrive(keep_trace=trace)
     obs = robot.observe()
-    drive.start(obs.stamp, obs.odom.pose)
+    drive.start(obs.stamp, obs.odom.pose, approach)
     while obs.stamp < limit:
         cmd = drive.step(obs.stamp, obs.dock_ir, obs.bumpers, obs.battery.on_dock, obs.odom.pose)
         if drive.state.finished:
@@ -134,3 +142,35 @@ def test_aligned_steers_towards_the_centre_line(code: IR, sign: int) -> None:
     drive.step(0.0, DockIR(centre=IR.FAR_CENTER), Bumpers(), False, Pose2())
     cmd = drive.step(1.0, DockIR(centre=code), Bumpers(), False, Pose2())
     assert cmd.v > 0 and math.copysign(1, cmd.omega) == sign
+
+
+def test_from_a_known_staging_distance_it_drives_in_faster_and_meets_the_contacts_at_kobukis_speed(lab) -> None:
+    kobuki, robot, t_kobuki = dock_from(lab, lab.staging_pose(1.0))
+    robot.close()
+    drive, robot, t = dock_from(lab, lab.staging_pose(1.0), trace=True, approach=1.0)
+    assert drive.state is DockState.DONE and robot.charging
+    assert kobuki.state is DockState.DONE
+    # The 0.5 m it may drive at APPROACH_V instead of 5 cm/s save about 0.5/0.05 − 0.5/0.15 s.
+    assert t_kobuki - t > 0.8 * (0.5 / NEAR_V - 0.5 / APPROACH_V)
+    moving = [s for s in drive.trace if s.cmd.v > 0]
+    assert max(s.cmd.v for s in moving) == pytest.approx(APPROACH_V)
+    # Within SLOW_ZONE of the dock (the last SLOW_ZONE / NEAR_V seconds before the contacts) kobuki's speed.
+    closed = next(s.time for s in drive.trace if s.state is DockState.DOCKED_IN)
+    last = [s for s in moving if s.time > closed - 0.8 * SLOW_ZONE / NEAR_V]
+    assert last and all(s.cmd.v <= NEAR_V + 1e-9 for s in last)
+    robot.close()
+
+
+@pytest.mark.parametrize("code", [IR.NEAR_LEFT, IR.NEAR_RIGHT])
+def test_the_beam_lost_while_steering_is_looked_for_back_the_way_it_came(code: IR) -> None:
+    drive = DockDrive(window=0.1)
+    drive.start(0.0, Pose2(), approach=1.0)
+    drive.step(0.0, DockIR(centre=IR.NEAR_CENTER), Bumpers(), False, Pose2())
+    steer = drive.step(0.5, DockIR(centre=code), Bumpers(), False, Pose2()).omega
+    cmd = drive.step(1.0, DockIR(), Bumpers(), False, Pose2())
+    assert drive.state is DockState.SCAN
+    assert cmd.v == 0 and math.copysign(1, cmd.omega) == -math.copysign(1, steer)
+    # Still turning that way on the next ticks, and kobuki's slow approach once the beam is found again.
+    assert math.copysign(1, drive.step(1.5, DockIR(), Bumpers(), False, Pose2()).omega) == -math.copysign(1, steer)
+    drive.step(2.0, DockIR(centre=IR.NEAR_CENTER), Bumpers(), False, Pose2())
+    assert drive.step(2.5, DockIR(centre=IR.NEAR_CENTER), Bumpers(), False, Pose2()).v == NEAR_V
