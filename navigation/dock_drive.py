@@ -49,8 +49,8 @@ Where homing departs from kobuki, each because kobuki's robot can stall there:
   kobuki's 5 cm/s).
 
 It never blocks: call :meth:`DockDrive.step` once a tick with that tick's
-observation; it returns the command. Run ``python -m homing.navigation.dock_drive``
-for a trace of a docking from the side of the dock.
+observation; it returns the command. ``homing world dock lab`` prints a trace
+of a docking in the simulator (the tag servo, then this drive).
 """
 
 from __future__ import annotations

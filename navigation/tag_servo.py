@@ -25,7 +25,7 @@ Phases, each on odometry alone between sightings:
 
 Frames: tag measurements in ``base_link`` (the tag's x axis is its face
 normal, into the room), odometry in ``odom``, the goal in the tag's frame.
-Run ``python -m homing.navigation.tag_servo`` for a trace from a drifted start.
+``homing world dock lab --offset DX DY DEG`` prints a trace from a drifted start in the simulator.
 """
 
 from __future__ import annotations

@@ -149,6 +149,21 @@ def test_world_show_draws_a_picture(tmp_path: Path, capsys) -> None:
     assert img is not None and img.shape[0] > 400 and img.shape[1] > 400
 
 
+@pytest.mark.slow
+def test_world_dock_traces_the_servo_then_the_ir_drive_onto_the_charger(capsys) -> None:
+    assert main(["world", "dock", "lab", "--offset", "0.3", "-0.3", "10"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    servo = [ln for ln in lines if "tag servo" in ln]
+    drive = [ln for ln in lines if "IR drive" in ln]
+    assert servo and "succeeded" in servo[-1] and drive and "done" in drive[-1]
+    assert lines.index(servo[-1]) < lines.index(drive[0])  # the servo first, then the drive
+    # The truth columns: the servo ends within 5 cm of the staging pose, the drive on the docked pose.
+    assert float(servo[-1].split()[4]) <= 0.05 and float(drive[-1].split()[6]) <= 0.05
+    assert lines[-1].startswith("docked after")
+    assert main(["world", "dock", "lab", "--offset", "5", "0", "0"]) == 2
+    assert "--offset 5 0 0" in capsys.readouterr().err
+
+
 def test_sim_robot_speaks_the_adapter_contract() -> None:
     from homing.robot import RobotAdapter
 

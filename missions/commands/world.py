@@ -1,4 +1,9 @@
-"""``homing world show WORLD --out world.png``: draw a simulated world (map, dock, tags, patches, start)."""
+"""``homing world show WORLD --out world.png``: draw a simulated world (map, dock, tags, patches, start).
+
+``homing world dock WORLD [--offset DX DY DEG]``: a trace of the docking algorithms in the simulator — the tag
+servo (:mod:`homing.navigation.tag_servo`, the real detector on rendered frames) from the staging pose moved
+by the offset (a drifted map's error), then the IR drive (:mod:`homing.navigation.dock_drive`) to the charger.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +13,7 @@ import math
 
 MIN_DPI, MAX_DPI = 30, 600  # [dots/inch] the 8-inch figure: 240 … 4800 pixels a side
 FIGURE_INCHES = 8  # the picture's side, before its margins
+TRACE_TICK = 0.1  # [s] control period of `world dock`
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,6 +34,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     show.add_argument("--out", required=True, metavar="PNG", type=output_file("--out"), help="picture to write")
     show.add_argument("--dpi", type=whole(MIN_DPI, MAX_DPI), default=120, help=f"resolution of the picture ({MIN_DPI}…{MAX_DPI}, default 120)")
     show.set_defaults(func=_show)
+    dock = actions.add_parser(
+        "dock",
+        help="trace the tag servo and the IR dock drive from the staging pose moved by an offset",
+        description="Run the docking algorithms in the simulator and print each change of state: the tag "
+                    "servo from the staging pose moved by --offset (as a drifted map leaves the robot), then "
+                    "kobuki's IR dock drive until the charger reports the dock.",
+    )
+    dock.add_argument("world", metavar="WORLD", help="bundled world name (e.g. lab) or path to a YAML file")
+    dock.add_argument("--offset", nargs=3, type=float, default=[0.3, -0.3, 10.0], metavar=("DX", "DY", "DEG"),
+                      help="start pose in the staging pose's frame [m, m, degrees] (default 0.3 -0.3 10)")
+    dock.add_argument("--seed", type=int, default=1, help="simulator seed (default 1)")
+    dock.set_defaults(func=_dock)
     parser.set_defaults(func=lambda args: (parser.print_help(), 2)[1])
 
 
@@ -42,6 +60,66 @@ def _show(args: argparse.Namespace) -> int:
     print(f"{args.out}: {world.name}, {len(world.tags)} tags, dock at "
           f"({world.dock.station.x:.2f}, {world.dock.station.y:.2f})")
     return 0
+
+
+def _dock(args: argparse.Namespace) -> int:
+    from homing.navigation.dock_drive import DockDrive, DockState
+    from homing.navigation.tag_servo import ServoStatus, Sighting, TagServo
+    from homing.perception.apriltag import TagDetector
+    from homing.perception.tag_wall import TagPerception
+    from homing.robot import Pose2
+    from homing.sim import SimRobot
+    from homing.sim.world import load_world
+
+    from homing.errors import UserError
+
+    dx, dy, deg = args.offset
+    if not all(math.isfinite(v) for v in args.offset) or math.hypot(dx, dy) > 2.0 or abs(deg) > 90.0:
+        raise UserError(f"--offset {dx:g} {dy:g} {deg:g}: the start must lie within 2 m and 90° of the staging pose")
+    world = load_world(args.world)
+    staging = world.staging_pose(1.0)
+    robot = SimRobot(world, seed=args.seed, start=staging.compose(Pose2(dx, dy, math.radians(deg))))
+    seen, servo, drive = TagPerception(TagDetector()), TagServo(), DockDrive()
+    print(f"{world.name}: from the staging pose moved by ({dx:g} m, {dy:g} m, {deg:g}°); truth columns are the"
+          f" simulator's\n{'time s':>7}  {'algorithm':<10} {'state':<13} {'to staging':>10} {'to dock':>8}  message")
+
+    def row(t: float, who: str, state: str, message: str) -> None:
+        truth = robot.truth_pose()
+        off = staging.between(truth)
+        print(f"{t:7.1f}  {who:<10} {state:<13} {math.hypot(off.x, off.y):8.2f} m "
+              f"{truth.distance_to(world.dock_pose):6.2f} m  {message}")
+
+    try:
+        obs = robot.observe()
+        servo.start(obs.stamp, obs.odom.pose)
+        last = None
+        while servo.status not in (ServoStatus.SUCCEEDED, ServoStatus.FAILED) and obs.stamp < 120.0:
+            for m in seen.measure(obs):
+                if m.tag_id == world.dock_tag_id:
+                    servo.see(Sighting(m.stamp, m.pose, m.covariance))
+            cmd = servo.step(obs.stamp, obs.odom.pose)
+            if servo.status != last:
+                row(obs.stamp, "tag servo", servo.status.value, f"{servo.message} ({servo.sightings} sightings)")
+                last = servo.status
+            robot.command(cmd.v, cmd.omega)
+            robot.step(TRACE_TICK)
+            obs = robot.observe()
+        drive.start(obs.stamp, obs.odom.pose, approach=1.0 if servo.status is ServoStatus.SUCCEEDED else 0.0)
+        t0, last_state = obs.stamp, None
+        while not drive.state.finished and obs.stamp - t0 < 150.0:
+            cmd = drive.step(obs.stamp, obs.dock_ir, obs.bumpers, obs.battery.on_dock, obs.odom.pose)
+            if drive.state != last_state:
+                row(obs.stamp, "IR drive", drive.state.value, f"{drive.message} (v {cmd.v:.2f} m/s)")
+                last_state = drive.state
+            robot.command(cmd.v, cmd.omega)
+            robot.step(TRACE_TICK)
+            obs = robot.observe()
+        docked = drive.state is DockState.DONE and robot.charging
+        print(f"{'docked' if docked else 'not docked'} after {obs.stamp:.1f} s"
+              + ("" if docked else f" ({drive.reason or servo.reason or 'time limit'})"))
+    finally:
+        robot.close()
+    return 0 if docked else 1
 
 
 def block_any(mask, k: int):  # noqa: ANN001, ANN201 - numpy, imported lazily
