@@ -140,6 +140,7 @@ class Runner:
         self.tree.visitors.append(_ChangeVisitor(self))
         self._setup_done = False
         self._stop_requested = False
+        self._idling = False  # the last step idled (see next_step)
 
     def request_stop(self) -> None:
         """End the run after this tick, as Ctrl-C does (reason ``interrupted``): for callbacks and tests."""
@@ -294,10 +295,14 @@ class Runner:
         idle_until = self.read(IDLE_KEY)
         cmd = self.last_command
         if idle_until is None or cmd.v != 0.0 or cmd.omega != 0.0:
+            self._idling = False
             return self.period
         step = min(float(idle_until) - self.now, MAX_IDLE)
         if self.until is not None:
             step = min(step, self.start + self.until - self.now)
+        if not self._idling:
+            _release_memory()  # the first idle step of a stretch (a robot starting to charge): hand back what is free
+        self._idling = True
         return max(self.period, step)
 
     def _pace(self) -> None:
@@ -347,6 +352,30 @@ class _ChangeVisitor(py_trees.visitors.VisitorBase):
 
     def run(self, behaviour: py_trees.behaviour.Behaviour) -> None:
         self.runner.record(behaviour)
+
+
+def _release_memory() -> None:
+    """Return the C heap's free pages to the system (glibc's ``malloc_trim``; nothing elsewhere).
+
+    A trip allocates and frees hundreds of MB of arrays (likelihood fields, costmaps, path searches); glibc keeps
+    freed pages for reuse, so a process living for days shows a resident size that creeps up in steps while
+    what Python holds stays flat (``bench persist``: tracemalloc +3 MB where RSS grew 25 MB in five hours).
+    """
+    global _LIBC
+    if _LIBC is None:
+        import ctypes
+        import ctypes.util
+
+        try:
+            _LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+            _LIBC.malloc_trim.argtypes = [ctypes.c_size_t]
+        except (OSError, AttributeError):
+            _LIBC = False
+    if _LIBC:
+        _LIBC.malloc_trim(0)
+
+
+_LIBC: Any = None
 
 
 def parse_duration(text: str) -> float:

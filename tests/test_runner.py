@@ -193,3 +193,26 @@ def test_a_counter_reads_zero_before_its_first_count(tmp_path: Path) -> None:
     assert runner.read("/mission/cycles") == 0
     result = runner.run()
     assert result.reason == "success" and runner.read("/mission/cycles") == 1
+
+
+def test_free_memory_is_handed_back_once_at_the_start_of_each_idle_stretch(tmp_path: Path, monkeypatch) -> None:
+    import homing.missions.runner as runner_module
+    from homing.behaviours.keys import IDLE_KEY
+
+    released: list[float] = []
+    monkeypatch.setattr(runner_module, "_release_memory", lambda: released.append(runner.now))
+    runner = Runner(compile_mission(mission(tmp_path, "  Wait: 100 s\n")), FakeRobot())
+    runner.setup()
+    steps = []
+    for t, idle in [(0.0, None), (0.1, 30.0), (30.0, 60.0), (60.0, None), (60.1, 90.0)]:
+        runner.now = t
+        runner.bb.set(IDLE_KEY, idle, overwrite=True)
+        steps.append(runner.next_step())
+    assert steps == pytest.approx([0.1, 29.9, 30.0, 0.1, 29.9])
+    assert released == [0.1, 60.1]  # the first idle step of each stretch, not every one
+    runner.shutdown()
+    # The real call finds glibc's malloc_trim here (Linux), or settles on doing nothing.
+    monkeypatch.undo()
+    runner_module._LIBC = None
+    runner_module._release_memory()
+    assert runner_module._LIBC is False or hasattr(runner_module._LIBC, "malloc_trim")

@@ -31,6 +31,7 @@ thread reopens it every second meanwhile.
 from __future__ import annotations
 
 import math
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -50,6 +51,7 @@ RETRY = 1.0  # [s] between attempts to reopen a lost camera
 KEEP_FRACTION = 0.9  # a live frame is kept once this share of a period has passed since the last kept one
 MIN_SILENCE = 2.0  # [s] the shortest silence that counts as a lost camera
 STREAM_TIMEOUT = 3.0  # [s] a network stream that opens or sends nothing for this long has failed
+FFMPEG_LOG_FATAL = 8  # AV_LOG_FATAL: FFmpeg keeps only its fatal messages
 URL_SCHEMES = ("http://", "https://", "rtsp://", "rtp://", "udp://", "tcp://")
 
 
@@ -210,6 +212,9 @@ class UvcCamera:
         import cv2
 
         if is_url(self.source):
+            # FFmpeg prints "Stream ends prematurely" to stderr, over the live view, whenever a stream stops; the
+            # adapter reports a lost camera itself (``lost``, ``reconnects``). Read once, at the backend's first use.
+            os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", str(FFMPEG_LOG_FATAL))
             ms = round(STREAM_TIMEOUT * 1000)
             cap = cv2.VideoCapture(self.source, cv2.CAP_FFMPEG,
                                    [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, ms, cv2.CAP_PROP_READ_TIMEOUT_MSEC, ms])
