@@ -189,6 +189,9 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
         result = runner.run()
     finally:
         robot.close()
+    if result.reason == "interrupted":
+        # Ctrl-C or SIGTERM stopped the run half-way: it is no finished run (a --runs-json keeps only those).
+        raise KeyboardInterrupt
     grid = runner.read("/map/grid")
     explore: Any = next((n for n in mission.root.iterate() if type(n).__name__ == "Explore"), None)
     cov = coverage(grid, world.map, (start_truth.x, start_truth.y), world_from_map)

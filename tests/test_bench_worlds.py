@@ -47,3 +47,14 @@ def test_bench_plan_uses_the_plans_from_another_directory(floor_plans: Path, tmp
                           "--planners", "astar"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert "4 maps × 1 pairs" in out.stdout
+
+
+def test_an_explore_run_stopped_by_a_signal_is_no_finished_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    """SIGTERM and Ctrl-C reach the runner as a stop request: the run ends 'interrupted', and bench explore must
+    stop there rather than score (and keep in --runs-json) a run cut short."""
+    import homing.missions.runner as runner_module
+    from homing.benchmarks.explore import run_one
+
+    monkeypatch.setattr(runner_module, "stop_requested", lambda: True)
+    with pytest.raises(KeyboardInterrupt):
+        run_one("lab", "nearest", 0, 1.0)
