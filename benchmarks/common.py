@@ -111,6 +111,19 @@ def column_parts(need: Sequence[int], width: int) -> list[list[int]]:
     return parts
 
 
+def run_to_end(runner: Any) -> Any:
+    """``runner.run()`` (a :class:`homing.missions.runner.Runner`); its RunResult.
+
+    Ctrl-C, SIGTERM and SIGHUP reach a runner as a stop request and end its run ``interrupted``: a benchmark
+    must then stop (KeyboardInterrupt, which the CLI reports), not score the run it cut short, count it as a
+    failure or an intervention, and go on.
+    """
+    result = runner.run()
+    if result.reason == "interrupted":
+        raise KeyboardInterrupt
+    return result
+
+
 def write_json(path: str | Path | None, data: Mapping[str, Any]) -> None:
     """Write the benchmark's figures to ``path`` atomically (nothing if ``path`` is None)."""
     if path:

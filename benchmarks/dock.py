@@ -96,6 +96,7 @@ def mission_file(folder: Path, variant: str, dock_tag: int) -> Path:
 
 def explored(world_spec: str, folder: Path) -> Path:
     """Explore the world once with the persistent mission and keep the robot's snapshot (its map, tags, dock)."""
+    from homing.benchmarks.common import run_to_end
     from homing.lifecycle.rundir import RunDir
     from homing.missions.compiler import compile_mission
     from homing.missions.loader import resolve_mission
@@ -107,7 +108,7 @@ def explored(world_spec: str, folder: Path) -> Path:
     mission = compile_mission(resolve_mission("persistent"), {"session": f"{EXPLORE_TIME:g} s", "cycles": 1})
     runner = Runner(mission, robot, seed=0, until=EXPLORE_TIME + 900.0, run_dir=run_dir)
     try:
-        runner.run()
+        run_to_end(runner)
     finally:
         robot.close()
     if not run_dir.has_run():
@@ -133,6 +134,7 @@ def _path_distance(world: Any) -> np.ndarray:
 
 def one_run(world_spec: str, snapshot_dir: str, variant: str, seed: int, time_limit: float) -> dict[str, Any]:
     """One go-home-and-dock run; its outcome and times."""
+    from homing.benchmarks.common import run_to_end
     from homing.lifecycle.rundir import RunDir
     from homing.missions.compiler import compile_mission
     from homing.missions.runner import Runner
@@ -171,7 +173,7 @@ def one_run(world_spec: str, snapshot_dir: str, variant: str, seed: int, time_li
 
     runner = Runner(mission, robot, seed=seed, until=time_limit, resume=snap, on_change=on_change)
     try:
-        result = runner.run()
+        result = run_to_end(runner)
         docked = robot.charging and result.root_status is Status.SUCCESS
     finally:
         robot.close()

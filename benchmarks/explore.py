@@ -150,6 +150,7 @@ class _Track:
 def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map: str | None = None) -> RunResult:
     """One run through the real mission and runner; reads the simulator's truth only to score it."""
     import numpy as np
+    from homing.benchmarks.common import run_to_end
     from homing.mapping.evaluate import coverage
     from homing.missions.compiler import compile_mission
     from homing.missions.runner import Runner
@@ -186,12 +187,9 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
     if "/map/grid" not in runner.bb.remappings:
         runner.bb.register_key(key="/map/grid", access=Access.READ)
     try:
-        result = runner.run()
+        result = run_to_end(runner)  # a run stopped half-way by a signal is no finished run for --runs-json
     finally:
         robot.close()
-    if result.reason == "interrupted":
-        # Ctrl-C or SIGTERM stopped the run half-way: it is no finished run (a --runs-json keeps only those).
-        raise KeyboardInterrupt
     grid = runner.read("/map/grid")
     explore: Any = next((n for n in mission.root.iterate() if type(n).__name__ == "Explore"), None)
     cov = coverage(grid, world.map, (start_truth.x, start_truth.y), world_from_map)

@@ -284,6 +284,7 @@ def scenario_explore(world: Any, seed: int, minutes: float, tour: bool = True) -
     """
     import tempfile
 
+    from homing.benchmarks.common import run_to_end
     from homing.missions.compiler import compile_mission
     from homing.missions.runner import Runner
     from homing.sim import SimRobot
@@ -306,7 +307,7 @@ def scenario_explore(world: Any, seed: int, minutes: float, tour: bool = True) -
 
     try:
         runner = Runner(mission, robot, seed=seed, until=60.0 * minutes, on_tick=watch)
-        result = runner.run()
+        result = run_to_end(runner)
         out = col.result({t.id: Pose2(t.x, t.y, t.yaw) for t in world.tags})
         out.update(sim_minutes=result.time / 60.0, rtf=result.rtf,
                    explore_minutes=(explored[0] if explored else result.time) / 60.0)

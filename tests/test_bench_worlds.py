@@ -58,3 +58,13 @@ def test_an_explore_run_stopped_by_a_signal_is_no_finished_run(monkeypatch: pyte
     monkeypatch.setattr(runner_module, "stop_requested", lambda: True)
     with pytest.raises(KeyboardInterrupt):
         run_one("lab", "nearest", 0, 1.0)
+
+
+def test_bench_persist_stops_on_a_signal_instead_of_counting_an_intervention(monkeypatch: pytest.MonkeyPatch) -> None:
+    """bench persist restarts the robot when its mission ends (an intervention): a signal must not be one."""
+    import homing.missions.runner as runner_module
+    from homing.benchmarks.persist import live
+
+    monkeypatch.setattr(runner_module, "stop_requested", lambda: True)
+    with pytest.raises(KeyboardInterrupt):
+        live("lab", 1, 3600.0, 0.0, False, lambda t: None)
