@@ -357,9 +357,9 @@ class _ChangeVisitor(py_trees.visitors.VisitorBase):
 def _release_memory() -> None:
     """Return the C heap's free pages to the system (glibc's ``malloc_trim``; nothing elsewhere).
 
-    A trip allocates and frees hundreds of MB of arrays (likelihood fields, costmaps, path searches); glibc keeps
-    freed pages for reuse, so a process living for days shows a resident size that creeps up in steps while
-    what Python holds stays flat (``bench persist``: tracemalloc +3 MB where RSS grew 25 MB in five hours).
+    A trip allocates and frees many large arrays (likelihood fields, costmaps, path searches); glibc keeps freed
+    pages for reuse, so a process living for days showed a resident size that crept up in steps while what
+    Python holds stayed flat (``bench persist``: tracemalloc +3 MB where RSS grew 25 MB in five hours).
     """
     global _LIBC
     if _LIBC is None:
