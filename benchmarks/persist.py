@@ -102,7 +102,6 @@ class Life:
             spent = self.states.setdefault(self._last[2], [0.0, 0.0])
             spent[0] += now - self._last[0]
             spent[1] += wall - self._last[1]
-        self._last = (now, wall, state)
         if obs is not None:
             self.lowest["base"] = min(self.lowest["base"], obs.battery.percent)
             if obs.computer_battery is not None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import io
 import math
+from typing import Any
 
 MIN_DPI, MAX_DPI = 30, 600  # [dots/inch] the 8-inch figure: 240 … 4800 pixels a side
 FIGURE_INCHES = 8  # the picture's side, before its margins
@@ -89,31 +90,37 @@ def _dock(args: argparse.Namespace) -> int:
         print(f"{t:7.1f}  {who:<10} {state:<13} {math.hypot(off.x, off.y):8.2f} m "
               f"{truth.distance_to(world.dock_pose):6.2f} m  {message}")
 
+    def servo_step(obs: Any) -> Any:
+        for m in seen.measure(obs):
+            if m.tag_id == world.dock_tag_id:
+                servo.see(Sighting(m.stamp, m.pose, m.covariance))
+        cmd = servo.step(obs.stamp, obs.odom.pose)
+        return cmd, servo.status, f"{servo.message} ({servo.sightings} sightings)"
+
+    def drive_step(obs: Any) -> Any:
+        cmd = drive.step(obs.stamp, obs.dock_ir, obs.bumpers, obs.battery.on_dock, obs.odom.pose)
+        return cmd, drive.state, f"{drive.message} (v {cmd.v:.2f} m/s)"
+
+    def follow(obs: Any, who: str, step: Any, finished: Any, limit: float) -> Any:
+        """Command the robot with ``step`` each tick until ``finished()`` or ``limit`` [s]; a row per new state."""
+        last = None
+        while not finished() and obs.stamp < limit:
+            cmd, state, message = step(obs)
+            if state != last:
+                row(obs.stamp, who, state.value, message)
+                last = state
+            robot.command(cmd.v, cmd.omega)
+            robot.step(TRACE_TICK)
+            obs = robot.observe()
+        return obs
+
     try:
         obs = robot.observe()
         servo.start(obs.stamp, obs.odom.pose)
-        last = None
-        while servo.status not in (ServoStatus.SUCCEEDED, ServoStatus.FAILED) and obs.stamp < 120.0:
-            for m in seen.measure(obs):
-                if m.tag_id == world.dock_tag_id:
-                    servo.see(Sighting(m.stamp, m.pose, m.covariance))
-            cmd = servo.step(obs.stamp, obs.odom.pose)
-            if servo.status != last:
-                row(obs.stamp, "tag servo", servo.status.value, f"{servo.message} ({servo.sightings} sightings)")
-                last = servo.status
-            robot.command(cmd.v, cmd.omega)
-            robot.step(TRACE_TICK)
-            obs = robot.observe()
+        obs = follow(obs, "tag servo", servo_step,
+                     lambda: servo.status in (ServoStatus.SUCCEEDED, ServoStatus.FAILED), 120.0)
         drive.start(obs.stamp, obs.odom.pose, approach=1.0 if servo.status is ServoStatus.SUCCEEDED else 0.0)
-        t0, last_state = obs.stamp, None
-        while not drive.state.finished and obs.stamp - t0 < 150.0:
-            cmd = drive.step(obs.stamp, obs.dock_ir, obs.bumpers, obs.battery.on_dock, obs.odom.pose)
-            if drive.state != last_state:
-                row(obs.stamp, "IR drive", drive.state.value, f"{drive.message} (v {cmd.v:.2f} m/s)")
-                last_state = drive.state
-            robot.command(cmd.v, cmd.omega)
-            robot.step(TRACE_TICK)
-            obs = robot.observe()
+        obs = follow(obs, "IR drive", drive_step, lambda: drive.state.finished, obs.stamp + 150.0)
         docked = drive.state is DockState.DONE and robot.charging
         print(f"{'docked' if docked else 'not docked'} after {obs.stamp:.1f} s"
               + ("" if docked else f" ({drive.reason or servo.reason or 'time limit'})"))
