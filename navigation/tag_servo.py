@@ -45,14 +45,14 @@ STAGING_DISTANCE = 1.0  # [m] staging pose out from the docked pose (thesis: "ab
 XY_TOLERANCE = 0.02  # [m] goal reached
 YAW_TOLERANCE = math.radians(1.5)  # [rad]
 MAX_V = 0.20  # [m/s]
-MAX_OMEGA = 0.8  # [rad/s]
+MAX_OMEGA = 1.2  # [rad/s]
 K_V = 0.8  # [1/s] speed per metre to go
-K_OMEGA = 2.0  # [1/s] turn rate per radian of heading error
+K_OMEGA = 3.0  # [1/s] turn rate per radian of heading error
 MIN_OMEGA = 0.12  # [rad/s] the base does not turn slower than this reliably
 DRIVE_HEADING = math.radians(20.0)  # [rad] turn on the spot first when the goal's bearing is off by more
 REVERSE_RANGE = 0.40  # [m] a goal behind the robot and this close is reached backwards
 SEARCH_ANGLE = math.radians(70.0)  # [rad] sweep half-width when the tag is not in view
-SEARCH_OMEGA = 0.5  # [rad/s]
+SEARCH_OMEGA = 0.8  # [rad/s]
 MEMORY = 8  # sightings averaged
 HISTORY = 3.0  # [s] odometry kept to place a sighting at its image's stamp
 MIN_VARIANCE = 1e-6  # [m²] floor of a sighting's goal variance
@@ -173,7 +173,8 @@ class TagServo:
             err = targets[self._search_leg] - turned
             if abs(err) > math.radians(2.0):
                 self.message = f"looking for the tag ({math.degrees(turned):+.0f}°)"
-                return Twist2(0.0, math.copysign(SEARCH_OMEGA, err))
+                # Proportional near the leg's end: a fixed rate would step past a narrow window for ever.
+                return Twist2(0.0, math.copysign(min(SEARCH_OMEGA, max(K_OMEGA * abs(err), MIN_OMEGA)), err))
             self._search_leg += 1
         self.status = ServoStatus.FAILED
         self.reason = "no_tag"

@@ -72,15 +72,16 @@ def test_staging_lies_on_the_tags_normal_facing_it() -> None:
     assert goal == Pose2(DOCKED_FROM_WALL + 1.0, 0.0, math.pi)
 
 
-def test_sweeps_both_ways_then_fails_without_a_sighting() -> None:
+@pytest.mark.parametrize("tick", [TICK, 0.2])  # 0.2 s: the persistent mission's 5 Hz, a 9° step at full sweep speed
+def test_sweeps_both_ways_then_fails_without_a_sighting(tick: float) -> None:
     servo = TagServo(search_angle=math.radians(60.0))
     servo.start(0.0, Pose2())
     yaw, t, extremes = 0.0, 0.0, []
     while servo.status is ServoStatus.SEARCH and t < 60.0:
         cmd = servo.step(t, Pose2(0.0, 0.0, yaw))
-        yaw += cmd.omega * TICK
+        yaw += cmd.omega * tick
         extremes.append(yaw)
-        t += TICK
+        t += tick
     assert servo.status is ServoStatus.FAILED and servo.reason == "no_tag"
     assert max(extremes) == pytest.approx(math.radians(60.0), abs=math.radians(4.0))
     assert min(extremes) == pytest.approx(-math.radians(60.0), abs=math.radians(4.0))
