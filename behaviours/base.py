@@ -55,7 +55,8 @@ class HomingBehaviour(py_trees.behaviour.Behaviour):
     """A leaf that declares its parameters and blackboard keys and lives on the adapter's clock.
 
     Subclasses set ``PARAMS``, ``READS`` and ``WRITES`` (class attributes, read
-    by :func:`homing.behaviours.registry.register`) and take their parameters
+    by :func:`homing.behaviours.registry.register`; ``OPTIONAL_READS`` for keys
+    some trees never write) and take their parameters
     as keyword arguments of ``__init__(name, ...)``. Keys in ``READS`` and
     ``WRITES`` are registered on ``self.bb`` here; a key given as
     ``"$param"`` is resolved from the attribute of that name, so set it
@@ -68,13 +69,16 @@ class HomingBehaviour(py_trees.behaviour.Behaviour):
     PARAMS: ClassVar[tuple[Param, ...]] = ()
     READS: ClassVar[tuple[str, ...]] = ()
     WRITES: ClassVar[tuple[str, ...]] = ()
+    # Read when another node writes them, unset otherwise (BT.CPP's optional input port): ``homing check``
+    # does not ask for a writer, and ``read`` gives its default while nothing has written the key.
+    OPTIONAL_READS: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, name: str, **_: Any) -> None:
         super().__init__(name=name)
         self.robot: RobotAdapter | None = None
         self.seed: int = 0
         self.bb = self.attach_blackboard_client(name=name)
-        for key in self._keys(self.READS):
+        for key in self._keys((*self.READS, *self.OPTIONAL_READS)):
             self.bb.register_key(key=key, access=Access.READ)
         for key in self._keys(self.WRITES):
             self.bb.register_key(key=key, access=Access.WRITE)

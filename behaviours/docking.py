@@ -31,21 +31,25 @@ from homing.behaviours.keys import (
     NAVIGATOR_KEY,
     OBSERVATION_KEY,
     SAVE_KEY,
+    STAGED_KEY,
     TAGS_KEY,
 )
 from homing.behaviours.motion import FAILURE_KEY, FAILURE_PARAM, NavigateToPose, _ReportsFailure
 from homing.behaviours.registry import REQUIRED, Param, register
-from homing.navigation.dock_drive import DockDrive, DockState
+from homing.navigation.dock_drive import SERVOED_SLOW_ZONE, SLOW_ZONE, DockDrive, DockState
 from homing.navigation.recovery import BackUp as BackUpMotion
 from homing.navigation.recovery import MotionStatus
 from homing.navigation.recovery import Spin as SpinMotion
 from homing.navigation.tag_servo import ServoStatus, Sighting, TagServo, staging_in_tag
-from homing.robot import ChargingSource, Observation
+from homing.robot import ChargingSource, Observation, Pose2
+from homing.robot.frames import wrap_angle
 from py_trees.common import Status
 
 CHARGE_POLL = 10.0  # [s] adapter time between looks at the batteries while charging
 REST_POLL = 60.0  # [s] adapter time between looks at the charger while resting between rounds
 FOCUS_AHEAD = 0.5  # [s] the servo asks for every camera frame this far ahead, renewed every tick
+STAGED_XY = 0.03  # [m] AutoDock starts where the tag servo left the robot if odometry has moved less than this
+STAGED_YAW = math.radians(3.0)  # [rad] and turned less than this
 
 
 def on_dock(obs: Observation | None) -> bool:
@@ -184,7 +188,7 @@ class ServoToStaging(_ReportsFailure):
         TIMEOUT_PARAM,
     )
     READS = (OBSERVATION_KEY, TAGS_KEY)
-    WRITES = (CMD_VEL_KEY, FOCUS_KEY, "$failure_key")
+    WRITES = (CMD_VEL_KEY, FOCUS_KEY, STAGED_KEY, "$failure_key")
 
     def __init__(self, name: str, tag: int = 0, staging_distance: float = STAGING_DISTANCE,
                  xy_tolerance: float = 0.02, yaw_tolerance: float = math.radians(1.5),
@@ -202,6 +206,7 @@ class ServoToStaging(_ReportsFailure):
         if obs is None:
             return self.fail("no_observation")
         self.servo.start(obs.stamp, obs.odom.pose)
+        self.write(STAGED_KEY, None)
         return None
 
     def on_running(self) -> Status:
@@ -216,6 +221,7 @@ class ServoToStaging(_ReportsFailure):
         self.drive(cmd.v, cmd.omega)
         self.feedback_message = f"{self.servo.message} ({self.servo.sightings} sightings)"
         if self.servo.status is ServoStatus.SUCCEEDED:
+            self.write(STAGED_KEY, obs.odom.pose)  # AutoDock trusts its approach distance from here
             return Status.SUCCESS
         if self.servo.status is ServoStatus.FAILED:
             return self.fail(self.servo.reason or "failed", self.servo.message)
@@ -234,11 +240,13 @@ class AutoDock(_ReportsFailure):
     PARAMS = (
         Param("max_bumps", int, 3, "", "bumper presses before the attempt fails", minimum=1),
         Param("approach", float, 0.0, "m", "it starts on the staging pose this far from the docked pose, facing "
-              "the dock: drive in faster until 0.3 m out (0: unknown, kobuki's speeds)", minimum=0.0, maximum=3.0),
+              "the dock: drive in faster until 0.3 m out, 0.2 m if the tag servo has just put it there (0: unknown, "
+              "kobuki's speeds)", minimum=0.0, maximum=3.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
     READS = (OBSERVATION_KEY,)
+    OPTIONAL_READS = (STAGED_KEY,)  # written by ServoToStaging, if the tree has one
     WRITES = (CMD_VEL_KEY, "$failure_key")
 
     def __init__(self, name: str, max_bumps: int = 3, approach: float = 0.0, timeout: float = 120.0,
@@ -256,8 +264,17 @@ class AutoDock(_ReportsFailure):
         obs = self.observation()
         if obs is None:
             return self.fail("no_observation")
-        self.dock_drive.start(obs.stamp, obs.odom.pose, self.approach)
+        self.dock_drive.start(obs.stamp, obs.odom.pose, self.approach, self._slow_zone(obs.odom.pose))
         return None
+
+    def _slow_zone(self, odom: Pose2) -> float:
+        """SERVOED_SLOW_ZONE if the robot stands where the tag servo left it on the staging pose, else SLOW_ZONE."""
+        staged = self.read(STAGED_KEY)
+        if staged is None:
+            return SLOW_ZONE
+        moved = staged.between(odom)
+        servoed = math.hypot(moved.x, moved.y) <= STAGED_XY and abs(wrap_angle(moved.theta)) <= STAGED_YAW
+        return SERVOED_SLOW_ZONE if servoed else SLOW_ZONE
 
     def on_running(self) -> Status:
         obs = self.observation()

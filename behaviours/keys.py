@@ -18,6 +18,7 @@ EXPLORE_GOAL_KEY = "/explore/goal"  # Pose2 in map or None, written by the Explo
 EXPLORED_KEY = "/explore/explored"  # bool: the last Explore ended "explored" (True) or has gone for a frontier since
 TAGS_KEY = "/perception/tags"  # this tick's tag measurements in base_link
 FOCUS_KEY = "/perception/focus_until"  # [s] adapter time until which a leaf wants every camera frame looked at
+STAGED_KEY = "/nav/staged"  # Pose2 in odom where the tag servo last reached the staging pose (None: not since it started)
 DOCK_KEY = "/nav/dock"  # Pose2: the docked robot's pose in map (refreshed whenever the base charges on the dock)
 ENERGY_KEY = "/energy/policy"  # {battery: {percent, undock, home, reserve}} [%], written by the energy service
 HOME_DISTANCE_KEY = "/energy/distance_home"  # [m] planned travel distance to the staging pose

@@ -9,6 +9,7 @@ from homing.navigation.dock_drive import (
     APPROACH_V,
     FULL_TURN,
     NEAR_V,
+    SERVOED_SLOW_ZONE,
     SETTLE,
     SLOW_ZONE,
     DockDrive,
@@ -28,12 +29,13 @@ def lab():
 
 
 def dock_from(world, start: Pose2, seed: int = 1, limit: float = 150.0,
-              trace: bool = False, approach: float = 0.0) -> tuple[DockDrive, SimRobot, float]:
+              trace: bool = False, approach: float = 0.0,
+              slow_zone: float = SLOW_ZONE) -> tuple[DockDrive, SimRobot, float]:
     """Run one docking attempt from ``start``; returns the drive, the robot (open) and the time taken [s]."""
     robot = SimRobot(world, seed=seed, camera=False, start=start)
     drive = DockDrive(keep_trace=trace)
     obs = robot.observe()
-    drive.start(obs.stamp, obs.odom.pose, approach)
+    drive.start(obs.stamp, obs.odom.pose, approach, slow_zone)
     while obs.stamp < limit:
         cmd = drive.step(obs.stamp, obs.dock_ir, obs.bumpers, obs.battery.on_dock, obs.odom.pose)
         if drive.state.finished:
@@ -144,21 +146,44 @@ def test_aligned_steers_towards_the_centre_line(code: IR, sign: int) -> None:
     assert cmd.v > 0 and math.copysign(1, cmd.omega) == sign
 
 
-def test_from_a_known_staging_distance_it_drives_in_faster_and_meets_the_contacts_at_kobukis_speed(lab) -> None:
+@pytest.mark.parametrize("slow_zone", [SLOW_ZONE, SERVOED_SLOW_ZONE])
+def test_from_a_known_staging_distance_it_drives_in_faster_and_meets_the_contacts_at_kobukis_speed(
+        lab, slow_zone: float) -> None:
     kobuki, robot, t_kobuki = dock_from(lab, lab.staging_pose(1.0))
     robot.close()
-    drive, robot, t = dock_from(lab, lab.staging_pose(1.0), trace=True, approach=1.0)
+    drive, robot, t = dock_from(lab, lab.staging_pose(1.0), trace=True, approach=1.0, slow_zone=slow_zone)
     assert drive.state is DockState.DONE and robot.charging
     assert kobuki.state is DockState.DONE
-    # The 0.5 m it may drive at APPROACH_V instead of 5 cm/s save about 0.5/0.05 − 0.5/0.15 s.
-    assert t_kobuki - t > 0.8 * (0.5 / NEAR_V - 0.5 / APPROACH_V)
+    # The 0.8 m − slow_zone it may drive at APPROACH_V instead of 5 cm/s save about that much/0.05 − /0.15 s.
+    fast = 0.8 - slow_zone
+    assert t_kobuki - t > 0.8 * (fast / NEAR_V - fast / APPROACH_V)
     moving = [s for s in drive.trace if s.cmd.v > 0]
     assert max(s.cmd.v for s in moving) == pytest.approx(APPROACH_V)
-    # Within SLOW_ZONE of the dock (the last SLOW_ZONE / NEAR_V seconds before the contacts) kobuki's speed.
+    # Within slow_zone of the dock (the last slow_zone / NEAR_V seconds before the contacts) kobuki's speed.
     closed = next(s.time for s in drive.trace if s.state is DockState.DOCKED_IN)
-    last = [s for s in moving if s.time > closed - 0.8 * SLOW_ZONE / NEAR_V]
+    last = [s for s in moving if s.time > closed - 0.8 * slow_zone / NEAR_V]
     assert last and all(s.cmd.v <= NEAR_V + 1e-9 for s in last)
     robot.close()
+
+
+def test_autodock_shortens_the_slow_zone_only_where_the_tag_servo_left_the_robot() -> None:
+    import py_trees
+    from homing.behaviours.docking import STAGED_XY, AutoDock
+    from homing.behaviours.keys import STAGED_KEY
+    from py_trees.common import Access
+
+    leaf = AutoDock("dock", approach=1.0)
+    bb = py_trees.blackboard.Client(name="test-staged")
+    bb.register_key(key=STAGED_KEY, access=Access.WRITE)
+    here = Pose2(2.0, 1.0, 0.5)
+    bb.set(STAGED_KEY, None)
+    assert leaf._slow_zone(here) == SLOW_ZONE  # no servo since: the map's staging pose, drifted by the trip
+    bb.set(STAGED_KEY, here.compose(Pose2(0.5 * STAGED_XY, 0.0, 0.01)))
+    assert leaf._slow_zone(here) == SERVOED_SLOW_ZONE
+    bb.set(STAGED_KEY, here.compose(Pose2(-0.3, 0.0, 0.0)))  # backed off since (a retry without a new servo)
+    assert leaf._slow_zone(here) == SLOW_ZONE
+    bb.set(STAGED_KEY, here.compose(Pose2(0.0, 0.0, 0.2)))  # turned since
+    assert leaf._slow_zone(here) == SLOW_ZONE
 
 
 @pytest.mark.parametrize("code", [IR.NEAR_LEFT, IR.NEAR_RIGHT])

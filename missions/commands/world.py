@@ -64,7 +64,7 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _dock(args: argparse.Namespace) -> int:
-    from homing.navigation.dock_drive import DockDrive, DockState
+    from homing.navigation.dock_drive import SERVOED_SLOW_ZONE, DockDrive, DockState
     from homing.navigation.tag_servo import ServoStatus, Sighting, TagServo
     from homing.perception.apriltag import TagDetector
     from homing.perception.tag_wall import TagPerception
@@ -119,7 +119,8 @@ def _dock(args: argparse.Namespace) -> int:
         servo.start(obs.stamp, obs.odom.pose)
         obs = follow(obs, "tag servo", servo_step,
                      lambda: servo.status in (ServoStatus.SUCCEEDED, ServoStatus.FAILED), 120.0)
-        drive.start(obs.stamp, obs.odom.pose, approach=1.0 if servo.status is ServoStatus.SUCCEEDED else 0.0)
+        servoed = servo.status is ServoStatus.SUCCEEDED  # as the mission's AutoDock: on the staging pose, known
+        drive.start(obs.stamp, obs.odom.pose, approach=1.0 if servoed else 0.0, slow_zone=SERVOED_SLOW_ZONE)
         obs = follow(obs, "IR drive", drive_step, lambda: drive.state.finished, obs.stamp + 150.0)
         docked = drive.state is DockState.DONE and robot.charging
         print(f"{'docked' if docked else 'not docked'} after {obs.stamp:.1f} s"
