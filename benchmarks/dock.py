@@ -202,6 +202,11 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
+def _one(x: float) -> str:
+    """A rate [%] or a time [s] to one decimal (the table's cells)."""
+    return "–" if math.isnan(x) else f"{x:.1f}"
+
+
 def run(args: argparse.Namespace) -> int:
     from homing.benchmarks.common import print_table, progress_bar, write_json
     from homing.benchmarks.engine import engine_from_args, failures_table, run_jobs
@@ -233,11 +238,13 @@ def run(args: argparse.Namespace) -> int:
     for v in args.variants:
         f = figures[v]
         t = thesis[v]
-        table.append([v, f["runs"], 100 * f["arrival_rate"], 100 * f["autodock_rate"], f["dock_time_median_s"],
-                      f["dock_time_p90_s"], f["attempts_mean"], f"{t[0]} / {t[1]} / {t[2]} s"])
+        table.append([v, f["runs"], _one(100 * f["arrival_rate"]), _one(100 * f["autodock_rate"]),
+                      _one(f["dock_time_median_s"]), _one(f["dock_time_p90_s"]), f"{f['attempts_mean']:.2f}",
+                      f"{t[0]}/{t[1]}/{t[2]} s"])
     print_table(f"bench dock: {world.name}, {args.runs} runs per variant, one fault each",
                 ["variant", "runs", "arrive %", "dock %", "median s", "p90 s", "tries", "thesis a/d/t"], table)
-    fault_rows = [[k, *(100 * figures[v]["by_fault"].get(k, math.nan) for v in args.variants)] for k in FAULT_KINDS]
+    fault_rows = [[k, *(_one(100 * figures[v]["by_fault"].get(k, math.nan)) for v in args.variants)]
+                  for k in FAULT_KINDS]
     print_table("docked per fault [%]", ["fault", *args.variants], fault_rows)
     failed = failures_table(outcomes)
     if failed:
