@@ -186,7 +186,6 @@ class OccupancyGrid:
         valid = t[None, :] < (lengths[:, None] - np.where(hit, step, 0.0)[:, None])
         xs = ox + np.cos(angles)[:, None] * t[None, :]
         ys = oy + np.sin(angles)[:, None] * t[None, :]
-        self._stop_at_walls(xs, ys, valid, ~hit)
         r, c = self.world_to_cell(xs[valid], ys[valid])
         inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
         free_idx = r[inside] * w + c[inside]
@@ -204,26 +203,6 @@ class OccupancyGrid:
         flat[hit_idx] += L_OCC
         np.clip(flat, L_MIN, L_MAX, out=flat)
         self._touch()
-
-    def _stop_at_walls(self, xs: np.ndarray, ys: np.ndarray, valid: np.ndarray, rays: np.ndarray) -> None:
-        """Cut the free samples of ``rays`` (a mask over the rows of ``valid``) at the first cell that reads occupied.
-
-        A ray with no return says little: besides open space beyond the lidar's reach, a run of rays
-        grazing a wall or meeting glass or black paint returns nothing. Cleared to the sensor's reach
-        they draw streaks of free floor through walls (on the lab, 8 % of the simulated scans had a
-        run of ≥ 5 dropped rays on a wall, and a week of them filled the rooms behind walls with free
-        streaks). What a ray with a return says is unchanged: it clears a box that was taken away.
-        """
-        idx = np.nonzero(rays & valid.any(axis=1))[0]
-        if not idx.size:
-            return
-        h, w = self.shape
-        r, c = self.world_to_cell(xs[idx], ys[idx])
-        inside = (r >= 0) & (r < h) & (c >= 0) & (c < w) & valid[idx]
-        wall = np.zeros(r.shape, dtype=bool)
-        wall[inside] = self.logodds[r[inside], c[inside]] > T_OCC
-        first = np.where(wall.any(axis=1), wall.argmax(axis=1), wall.shape[1])
-        valid[idx] &= np.arange(wall.shape[1])[None, :] < first[:, None]
 
     def clear(self) -> None:
         """Forget everything (all cells unknown)."""

@@ -97,20 +97,3 @@ def test_a_blanked_scan_clears_nothing_while_a_scan_of_open_space_still_does():
     open_gap = np.where(np.abs(angles - math.pi / 2) < 0.2, np.inf, 1.5).astype(np.float32)
     grid.integrate(Scan(0.2, -math.pi, 2 * math.pi / 360, open_gap, 0.15, 6.0), Pose2())
     assert grid.value_at(0.0, 4.0) == FREE
-
-
-def test_a_run_of_no_returns_does_not_clear_through_a_known_wall():
-    # Rays grazing a wall (or glass, or black paint) return nothing, several in a row. Cleared to the
-    # lidar's reach they would draw free streaks through the wall into the room behind it.
-    grid = OccupancyGrid(0.05, (-3.0, -3.0), (160, 160))
-    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
-    wall = np.where(np.abs(angles) < 0.4, 2.0 / np.cos(angles), 1.0).astype(np.float32)  # a wall at x = 2
-    grid.integrate(Scan(0.0, -math.pi, 2 * math.pi / 360, wall, 0.15, 6.0), Pose2())
-    assert grid.value_at(2.02, 0.0) == OCCUPIED and grid.value_at(3.0, 0.0) == UNKNOWN
-    grazing = wall.copy()
-    grazing[np.abs(angles) < 0.1] = np.inf  # 11 rays in a row towards the wall return nothing
-    for k in range(20):
-        grid.integrate(Scan(0.1 * (k + 1), -math.pi, 2 * math.pi / 360, grazing, 0.15, 6.0), Pose2())
-    assert grid.value_at(1.5, 0.0) == FREE  # up to the wall they still clear
-    assert grid.value_at(2.02, 0.0) == OCCUPIED
-    assert grid.value_at(3.0, 0.0) == UNKNOWN and grid.value_at(4.5, 0.0) == UNKNOWN
