@@ -174,15 +174,17 @@ class TagServo:
             if abs(err) > math.radians(2.0):
                 self.message = f"looking for the tag ({math.degrees(turned):+.0f}°)"
                 # Proportional near the leg's end: a fixed rate would step past a narrow window for ever.
-                return Twist2(0.0, math.copysign(min(SEARCH_OMEGA, max(K_OMEGA * abs(err), MIN_OMEGA)), err))
+                return Twist2(0.0, self._turn(err, SEARCH_OMEGA))
             self._search_leg += 1
         self.status = ServoStatus.FAILED
         self.reason = "no_tag"
         self.message = f"no sighting of the tag within ±{math.degrees(self.search_angle):.0f}°"
         return Twist2()
 
-    def _turn(self, err: float) -> float:
-        w = float(np.clip(K_OMEGA * err, -self.max_omega, self.max_omega))
+    def _turn(self, err: float, limit: float | None = None) -> float:
+        """Turn rate [rad/s] towards a heading error ``err`` [rad]: proportional, within MIN_OMEGA and ``limit``."""
+        limit = self.max_omega if limit is None else limit
+        w = float(np.clip(K_OMEGA * err, -limit, limit))
         return math.copysign(max(abs(w), MIN_OMEGA), err)
 
 
