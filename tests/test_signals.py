@@ -20,8 +20,10 @@ from tests.conftest import REPO
 
 def _default_sigint() -> None:
     # A shell without job control starts background jobs with SIGINT ignored, and homing rightly keeps a signal
-    # it was started ignoring (as under nohup); these tests are about Ctrl-C, so the child starts with the default.
+    # it was started ignoring (as under nohup, which ignores SIGHUP); these tests are about the stop signals, so the
+    # child starts with their defaults, however pytest itself was started (the SIGHUP case failed under nohup).
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 
 def _homing(*args: str, env: dict[str, str] | None = None) -> subprocess.Popen[str]:
