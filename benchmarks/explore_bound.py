@@ -31,6 +31,7 @@ from dataclasses import asdict, dataclass
 
 import cv2
 import numpy as np
+from homing.mapping.distance import distance_cells
 from homing.robot.turtlebot import FOOTPRINT_RADIUS, NAV_MAX_V
 
 from homing.map_server import FREE, MapData
@@ -118,7 +119,7 @@ def route(truth: MapData, start: tuple[float, float], target: float = TARGET) ->
     res = truth.resolution
     reach = reachable_free(truth, start)
     free = truth.grid == FREE
-    clear = cv2.distanceTransform(free.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * res
+    clear = distance_cells(free) * res
     fits = reach & (clear >= FOOTPRINT_RADIUS)
     # The start, moved onto the nearest cell where the footprint fits; viewpoints where it fits, joined to it.
     fr, fc = np.nonzero(fits)

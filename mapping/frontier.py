@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from homing.mapping.distance import distance_cells
 from homing.robot.turtlebot import FOOTPRINT_RADIUS
 
 from homing.map_server import FREE, UNKNOWN
@@ -71,7 +72,7 @@ def _disc(radius_cells: float) -> np.ndarray:
 
 def _distance(mask_zero: np.ndarray) -> np.ndarray:
     """Distance [cells] from every cell to the nearest cell where ``mask_zero`` is True."""
-    return cv2.distanceTransform((~mask_zero).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return distance_cells(~mask_zero)
 
 
 def accessible_mask(grid: np.ndarray, resolution: float, robot_radius: float = FOOTPRINT_RADIUS) -> np.ndarray:

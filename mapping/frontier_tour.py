@@ -48,6 +48,7 @@ import math
 
 import cv2
 import numpy as np
+from homing.mapping.distance import distance_cells
 from homing.mapping.frontier import OCCUPIED_AT
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
@@ -129,7 +130,7 @@ def door_cells(grid: np.ndarray, resolution: float) -> np.ndarray:
     wall = long_enough[labels]
     if not wall.any():
         return np.zeros(grid.shape, bool)
-    clear = cv2.distanceTransform((~wall).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * resolution
+    clear = distance_cells(~wall) * resolution
     k = max(1, int(round(DOOR_SPAN / resolution)))
     kd = max(1, int(round(DOOR_SPAN / resolution / math.sqrt(2))))
     pad = np.pad(clear, k, mode="edge")

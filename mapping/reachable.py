@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from homing.mapping.distance import distance_cells
 from homing.mapping.frontier import OCCUPIED_AT
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.strategies import VIEW_RAYS, visible_unknown
@@ -122,7 +123,7 @@ def fits_mask(grid: np.ndarray, resolution: float, robot_radius: float = FOOTPRI
     occ = (grid >= OCCUPIED_AT).astype(np.uint8)
     if not occ.any():
         return grid == FREE
-    d = cv2.distanceTransform(1 - occ, cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * resolution
+    d = distance_cells(1 - occ) * resolution
     return (grid == FREE) & (d > robot_radius)
 
 

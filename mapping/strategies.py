@@ -69,6 +69,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 from homing.mapping import frontier_tour
+from homing.mapping.distance import distance_cells
 from homing.mapping.frontier import (
     OCCUPIED_AT,
     FrontierSegment,
@@ -412,7 +413,7 @@ def _wall_gap(grid: np.ndarray, resolution: float, robot_radius: float) -> np.nd
     occ = (grid >= OCCUPIED_AT).astype(np.uint8)
     if not occ.any():
         return np.full(grid.shape, np.inf, np.float32)
-    d = cv2.distanceTransform(1 - occ, cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * resolution
+    d = distance_cells(1 - occ) * resolution
     return d - robot_radius
 
 

@@ -34,6 +34,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+from homing.mapping.distance import distance_cells
 from homing.navigation.layers import (
     BumpMarks,
     Keepout,
@@ -362,10 +363,9 @@ class Costmap:
         static = self.static[window]
         lethal = (static == LETHAL) | self.obstacles[window] | self._unseen_layer(window)
         if lethal.any():
-            # cv2's precise L2 transform is the exact Euclidean distance to the nearest zero pixel, so the
-            # squared distance in cells is an integer: the cost is a table lookup, not an exponential per cell.
-            free = np.where(lethal, 0, 255).astype(np.uint8)
-            cells = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+            # The exact Euclidean distance to the nearest lethal cell, so the squared distance in cells is an
+            # integer: the cost is a table lookup, not an exponential per cell.
+            cells = distance_cells(~lethal)
             lut = self._cost_table()
             cost = lut[np.minimum(np.rint(cells * cells), len(lut) - 1).astype(np.intp)]
             d = cells * np.float32(self.resolution)

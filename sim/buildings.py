@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from scipy import ndimage
 
 from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData
 
@@ -204,7 +205,9 @@ def _near(a: tuple[int, int, int, int], b: tuple[int, int, int, int], gap: int) 
 def _reach_labels(grid: np.ndarray) -> np.ndarray:
     """(H, W) int32: 8-connected components of the cells where the robot's centre fits (ROBOT_CLEAR from solid)."""
     free = (grid == FREE).astype(np.uint8)
-    clear = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * RES > ROBOT_CLEAR
+    # scipy's exact transform, not OpenCV's precise one: that one's last bits depend on where its buffers fall
+    # in memory (homing.mapping.distance), and a cell at exactly ROBOT_CLEAR must land on the same side every run.
+    clear = ndimage.distance_transform_edt(free) * RES > ROBOT_CLEAR
     return cv2.connectedComponents(clear.astype(np.uint8), connectivity=8)[1]
 
 
