@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from homing.mapping.evaluate import cell_agreement, coverage, reachable_free
+from homing.mapping.evaluate import aligned_agreement, cell_agreement, coverage, reachable_free
 from homing.mapping.grid import OccupancyGrid
 from homing.robot import Pose2
 
@@ -77,3 +77,33 @@ def test_coverage_uses_the_map_frame_pose() -> None:
     assert coverage(g2, truth, (1.0, 1.0)).coverage == pytest.approx(reach[:, 19:].sum() / reach.sum())  # map cols ≥ 19
     assert cell_agreement(g2, truth, world_from_map) == pytest.approx(1.0)
     assert cell_agreement(g2, truth) < 0.95
+
+
+def test_aligned_agreement_forgives_a_small_rigid_misregistration_and_finds_it() -> None:
+    # A 6 m × 4 m floor at 5 cm with walls and a pillar; the robot's map of it is perfect but its frame sits
+    # 5 cm and 0.3° off from where the truth says it started: pinned there, every wall face disagrees.
+    g = np.full((80, 120), FREE, np.int8)
+    g[:2, :] = g[-2:, :] = g[:, :2] = g[:, -2:] = OCCUPIED
+    g[30:34, 20:100] = OCCUPIED
+    g[55:62, 70:77] = OCCUPIED
+    truth = MapData(g, 0.05, (0.0, 0.0, 0.0))
+    start = Pose2(3.0, 1.0, 0.3)  # the robot's true start: the map frame
+    error = Pose2(0.05, -0.025, np.radians(0.3))  # where its map frame really lies, seen from ``start``
+    grid = OccupancyGrid(0.05, (-4.0, -3.0), (160, 200), grow=False)
+    rows, cols = np.mgrid[0:160, 0:200]
+    x, y = grid.cell_to_world(rows.ravel(), cols.ravel())
+    world = start.compose(error).transform_points(np.column_stack([x, y]))
+    tr = np.floor(world[:, 1] / 0.05).astype(int)
+    tc = np.floor(world[:, 0] / 0.05).astype(int)
+    inside = (tr >= 0) & (tr < 80) & (tc >= 0) & (tc < 120)
+    values = np.full(160 * 200, UNKNOWN, np.int8)
+    values[inside] = g[tr[inside], tc[inside]]
+    values = values.reshape(160, 200)
+    built = OccupancyGrid.from_map_data(MapData(values, 0.05, (-4.0, -3.0, 0.0)), grow=False)
+    pinned = cell_agreement(built, truth, start)
+    aligned, correction = aligned_agreement(built, truth, start)
+    assert pinned < 0.99  # the misregistration is visible…
+    assert aligned > 0.997 and aligned > pinned + 0.01  # …and aligned away
+    assert abs(correction.x - error.x) <= 0.0125 and abs(correction.y - error.y) <= 0.0125
+    assert abs(correction.theta - error.theta) <= np.radians(0.2)  # 0.15° turns a 3 m wall by less than a cell
+    assert aligned_agreement(built, truth, start.compose(error))[0] == pytest.approx(cell_agreement(built, truth, start.compose(error)))
