@@ -4,7 +4,7 @@
 every cell to the nearest zero of ``nonzero`` (uint8 or bool), as OpenCV's
 precise L2 transform (Felzenszwalb & Huttenlocher's exact algorithm) gives
 it. That transform's last bits depend on where its buffers fall in memory
-(SIMD): the same input gave results 1e-7 apart between two processes (36 of
+(SIMD): the same input gave results 1e-7 apart between two processes (35 of
 60 000 cells of a costmap), which made two runs of one seed drift apart
 within two simulated minutes. The exact squared distance is an integer, so
 it is rounded to that integer and its square root taken again: exactly
