@@ -217,7 +217,7 @@ class ServoToStaging(_ReportsFailure):
         for m in self.read(TAGS_KEY) or ():
             if m.tag_id == self.tag:
                 self.servo.see(Sighting(m.stamp, m.pose, m.covariance))
-        cmd = self.servo.step(obs.stamp, obs.odom.pose)
+        cmd = self.servo.step(obs.stamp, obs.odom.pose, obs.odom.twist)
         self.drive(cmd.v, cmd.omega)
         self.feedback_message = f"{self.servo.message} ({self.servo.sightings} sightings)"
         if self.servo.status is ServoStatus.SUCCEEDED:

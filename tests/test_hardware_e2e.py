@@ -140,7 +140,8 @@ def test_a_persistent_cycle_over_the_emulated_devices_as_in_the_simulator(tmp_pa
     assert "stopped: success" in hw.stdout and "root SUCCESS" in hw.stdout and "(1.0× real time)" in hw.stdout
     assert "lost:" not in hw.stderr  # no device fell silent on the way
     phases = cycle_phases(hw.stdout)
-    assert [p[0] for p in phases] == list(CYCLE) and all(p[3] == "SUCCESS" for p in phases if p[0] != "Explore")
+    assert [p[0] for p in phases] == list(CYCLE) and all(p[3] == "SUCCESS" for p in phases if p[0] != "Explore"), (
+        phases, hw.stdout[-4000:])
     # Docked: the charger says so over the Kobuki protocol, and the simulator's truth agrees.
     assert charger is ChargingSource.DOCK
     assert status["charging"] and status["from_dock"] < 0.01 and status["command_errors"] == 0

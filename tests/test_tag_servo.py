@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 from homing.navigation.tag_servo import (
+    SETTLED_OMEGA,
     ServoStatus,
     Sighting,
     TagServo,
@@ -15,7 +16,7 @@ from homing.navigation.tag_servo import (
 )
 from homing.perception.apriltag import TagDetector
 from homing.perception.tag_wall import TagPerception
-from homing.robot import Pose2
+from homing.robot import Pose2, Twist2
 from homing.robot.turtlebot import DOCKED_FROM_WALL
 from homing.sim import SimRobot, load_world
 
@@ -108,3 +109,57 @@ def test_the_weighted_mean_follows_the_better_sighting_and_averages_headings_on_
     m = _weighted_mean([a, b], np.array([3.0, 1.0]))
     assert m.x == pytest.approx(0.25)
     assert abs(abs(m.theta) - math.pi) < 0.06  # near ±π, not near 0
+
+
+
+def _turn_with_dead_time(servo: TagServo, goal_yaw: float, check_still: bool) -> tuple[float, float]:
+    """Align on the spot to ``goal_yaw`` [rad] on a base that answers late, ticked at 5 Hz.
+
+    Kobuki's wheels take a command 0.2 s after it arrives (kobuki#389; the emulator's DEAD_TIME); a feedback
+    period (20 ms) and the tick's own work come on top, so a command takes hold just after the next tick's
+    reading (over the emulated serial port the gyro shows a command two 5 Hz ticks after it was sent).
+    Returns (measured turn rate at success [rad/s], heading error once the base is at rest [rad]).
+    """
+    late, tick, dt = 0.25, 0.2, 0.005
+    servo.start(0.0, Pose2())
+    servo.see(Sighting(0.0, Pose2(0.0, 0.0, goal_yaw), np.diag([1e-6, 1e-6, 1e-6])))
+    yaw = omega = t = 0.0
+    due: list[tuple[float, float]] = []  # (when it takes hold [s], ω [rad/s])
+
+    def run(seconds: float) -> None:
+        nonlocal yaw, omega, t
+        for _ in range(round(seconds / dt)):
+            while due and due[0][0] <= t + 1e-9:
+                omega = due.pop(0)[1]
+            yaw += omega * dt
+            t += dt
+
+    while servo.status not in (ServoStatus.SUCCEEDED, ServoStatus.FAILED):
+        assert t < 30.0, servo.message
+        cmd = servo.step(t, Pose2(0.0, 0.0, yaw), Twist2(0.0, omega) if check_still else None)
+        due.append((t + late, cmd.omega))
+        run(tick)
+    at_success = omega
+    due.append((t + late, 0.0))  # the next leaf's first command: stop
+    run(3 * late)
+    assert omega == 0.0
+    return at_success, math.remainder(goal_yaw - yaw, 2 * math.pi)
+
+
+GOALS = (3.0, 17.0, 52.0, 86.0, -115.0)  # [°] headings to turn to
+
+
+@pytest.mark.parametrize("goal_deg", GOALS)
+def test_succeeds_only_once_still_on_a_base_that_answers_late(goal_deg: float) -> None:
+    servo = TagServo(goal_in_tag=Pose2())
+    rate, err = _turn_with_dead_time(servo, math.radians(goal_deg), check_still=True)
+    assert servo.status is ServoStatus.SUCCEEDED
+    assert abs(rate) <= SETTLED_OMEGA
+    assert abs(math.degrees(err)) <= 3.0
+
+
+def test_without_the_stillness_check_the_late_base_swings_past_the_goal() -> None:
+    # What the check is for: on odometry alone the servo stops while still turning, and the base turns on.
+    runs = [_turn_with_dead_time(TagServo(goal_in_tag=Pose2()), math.radians(g), check_still=False) for g in GOALS]
+    assert max(abs(r) for r, _ in runs) > 4 * SETTLED_OMEGA
+    assert max(abs(math.degrees(e)) for _, e in runs) > 5.0

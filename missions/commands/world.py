@@ -94,7 +94,7 @@ def _dock(args: argparse.Namespace) -> int:
         for m in seen.measure(obs):
             if m.tag_id == world.dock_tag_id:
                 servo.see(Sighting(m.stamp, m.pose, m.covariance))
-        cmd = servo.step(obs.stamp, obs.odom.pose)
+        cmd = servo.step(obs.stamp, obs.odom.pose, obs.odom.twist)
         return cmd, servo.status, f"{servo.message} ({servo.sightings} sightings)"
 
     def drive_step(obs: Any) -> Any:
