@@ -184,18 +184,21 @@ class GridSlam:
                 self._relocalise(scan.stamp, points, odom_pose, max_range)
                 return
             result = self.matcher.match(self.reference, points, predicted, max_range)
-            result = self._slip_match(result, points, odom_pose, max_range)
+            result, scale = self._slip_match(result, points, odom_pose, max_range)
             self.last_score = result.score
             if self.relocalise and result.known_points >= MISFIT_POINTS and result.known_score < MISFIT_SCORE:
                 # The scan lands on mapped ground but fits nowhere near the prediction: the robot is not where
                 # it thinks. Fusing it would draw the room at the wrong place; after LOST_AFTER such scans, look
-                # for the robot in the whole map instead.
+                # for the robot in the whole map instead. Nor does it say anything of slip: the rung stays.
                 self.misfits += 1
                 if self.misfits >= LOST_AFTER:
                     self.lost = True
                     self.times_lost += 1
                 return
             self.misfits = 0
+            if scale != self.odom_scale:
+                self.odom_scale = scale
+                self.slip_switches += 1
             jump = predicted.between(result.pose)
             plausible = (
                 math.hypot(jump.x, jump.y) <= self.max_correction[0]
@@ -221,14 +224,16 @@ class GridSlam:
         d = last.between(odom_pose)
         return self.map_to_odom.compose(last.compose(Pose2(d.x * scale, d.y * scale, d.theta)))
 
-    def _slip_match(self, tight: MatchResult, points: np.ndarray, odom_pose: Pose2, max_range: float) -> MatchResult:
-        """The match on the current rung of SLIP_SCALES, or on a neighbouring one the walls fit better (see SLIP_*)."""
+    def _slip_match(self, tight: MatchResult, points: np.ndarray, odom_pose: Pose2,
+                    max_range: float) -> tuple[MatchResult, float]:
+        """The match on the current rung of SLIP_SCALES, or on a neighbouring one the walls fit better (see SLIP_*),
+        and that rung's scale."""
         if self._last_fused is None or self.matcher is None:
-            return tight
+            return tight, self.odom_scale
         last = self._last_fused[1]
         d = last.between(odom_pose)
         if math.hypot(d.x, d.y) < SLIP_MIN_TRAVEL:
-            return tight
+            return tight, self.odom_scale
         rung = SLIP_SCALES.index(self.odom_scale)
         best, best_scale = tight, self.odom_scale
         for k in (rung - 1, rung + 1):
@@ -236,10 +241,7 @@ class GridSlam:
                 other = self.matcher.match(self.reference, points, self._predict(odom_pose, SLIP_SCALES[k]), max_range)
                 if other.ok and other.score >= best.score + SLIP_MARGIN:
                     best, best_scale = other, SLIP_SCALES[k]
-        if best_scale != self.odom_scale:
-            self.odom_scale = best_scale
-            self.slip_switches += 1
-        return best
+        return best, best_scale
 
     def _settle(self, pose: Pose2, reach: float) -> None:
         """Copy the cells the live grid has become sure of into the reference, where they then stay."""
@@ -271,9 +273,8 @@ class GridSlam:
         found = relocalise(self.reference, points, max_range)
         self.last_relocalisation = found
         if found.pose is not None:
-            self.map_to_odom = found.pose.compose(odom_pose.inverse())
-            self.lost = False
-            self.misfits = 0
+            # Found: track from here as from a known pose; the slip rung belonged to the floor it was lifted from.
+            self.set_pose(found.pose, odom_pose)
 
     def adopt(self, grid: OccupancyGrid) -> None:
         """Carry on with ``grid`` (a saved map): scans are matched against it from the first one."""

@@ -72,3 +72,30 @@ def test_grid_slam_refuses_to_draw_a_kidnapped_scan_and_finds_itself_again(lab) 
     assert slam.pose.distance_to(there) < 0.10
     changed = np.abs(slam.grid.logodds - before) > 1.0
     assert changed.mean() < 0.01  # the map was not redrawn at the wrong place
+
+
+def test_found_again_it_tracks_at_full_odometry_scale_whatever_the_floor_it_was_lifted_from(lab) -> None:
+    # A robot driving at 0.2 m/s on wheels that had been slipping (its rung of SLIP_SCALES at one half) is picked
+    # up and set down elsewhere, driving on; odometry notices nothing. The slip belonged to the old floor.
+    slam = GridSlam(grid=OccupancyGrid.from_map_data(lab.map))
+    here, there = Pose2(1.5, 2.0, 0.5), Pose2(8.0, 6.5, -2.0)
+    slam.set_pose(here, Pose2())
+    slam.odom_scale = 0.5
+    step = Pose2(0.04, 0.0, 0.0)  # 0.2 s at 0.2 m/s
+    truth, odom, t, errors, scale_at_finding = here, Pose2(), 0.0, [], None
+    for k in range(40):
+        truth = there if k == 5 else truth.compose(step)
+        odom, t = odom.compose(step), t + 0.2
+        scan = _scan_at(lab, truth, seed=k)
+        scan = type(scan)(t, scan.angle_min, scan.angle_increment, scan.ranges, scan.range_min, scan.range_max,
+                          scan.laser_pose)
+        lost = slam.lost
+        slam.update(Odometry(t, odom, Twist2(0.2, 0.0)), scan)
+        if lost and not slam.lost:
+            scale_at_finding = slam.odom_scale
+        if slam.times_lost and not slam.lost:
+            errors.append(slam.pose.distance_to(truth))
+    assert slam.times_lost == 1 and not slam.lost, slam.last_relocalisation
+    assert scale_at_finding == 1.0
+    assert slam.slip_switches == 0  # the scans that did not fit said nothing about slip
+    assert len(errors) > 20 and max(errors) < 0.10, errors
