@@ -111,7 +111,6 @@ def test_the_weighted_mean_follows_the_better_sighting_and_averages_headings_on_
     assert abs(abs(m.theta) - math.pi) < 0.06  # near ±π, not near 0
 
 
-
 def _turn_with_dead_time(servo: TagServo, goal_yaw: float, check_still: bool) -> tuple[float, float]:
     """Align on the spot to ``goal_yaw`` [rad] on a base that answers late, ticked at 5 Hz.
 
