@@ -46,7 +46,14 @@ def test_adapter_reads_what_the_simulator_senses(emulation: Emulation) -> None:
             robot.command(0.0, 1.0)
             robot.step(0.1)
         robot.command(0.0, 0.0)
-        robot.step(0.2)
+        # The base takes a command 0.2 s late (the emulator's DEAD_TIME): compare once it reports standing still,
+        # not while the last turn still runs (at 1 rad/s a 20 ms old reading is 1° behind).
+        for _ in range(20):
+            robot.step(0.1)
+            twist = robot.observe().odom.twist
+            if twist.v == 0.0 and twist.omega == 0.0:
+                break
+        robot.step(0.1)
         with emulation.lock:
             sim_odom = emulation.robot.odometry.pose
             travelled = emulation.distance
