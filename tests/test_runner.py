@@ -216,3 +216,39 @@ def test_free_memory_is_handed_back_once_at_the_start_of_each_idle_stretch(tmp_p
     runner_module._LIBC = None
     runner_module._release_memory()
     assert runner_module._LIBC is False or hasattr(runner_module._LIBC, "malloc_trim")
+
+
+HEAP_PROBE = """
+import ctypes, sys
+import numpy as np
+import homing.missions.runner as runner_module
+libc = ctypes.CDLL("libc.so.6")
+class MallInfo2(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
+                                                 "fsmblks", "uordblks", "fordblks", "keepcost")]
+libc.mallinfo2.restype = MallInfo2
+if sys.argv[1] == "steady":
+    runner_module._steady_heap()
+big = np.ones(8 << 20, np.uint8)  # mapped (above any threshold); freeing it raises glibc's adaptive threshold
+del big
+before = libc.mallinfo2().hblkhd
+block = np.ones(2 << 20, np.uint8)
+print(libc.mallinfo2().hblkhd - before)
+"""
+
+
+def test_the_runners_steady_heap_maps_megabyte_blocks_so_freeing_them_shrinks_the_process() -> None:
+    """After an 8 MB array is freed, glibc's adaptive threshold serves a 2 MB one from the heap, whose holes then
+    keep the resident size up (bench persist's creeping RSS); with the runner's steady heap it is mapped."""
+    import ctypes
+
+    try:
+        ctypes.CDLL("libc.so.6").mallinfo2  # noqa: B018 - glibc ≥ 2.33
+    except (OSError, AttributeError):
+        pytest.skip("needs glibc ≥ 2.33 (mallinfo2) to see where a block came from")
+    mapped = {}
+    for mode in ("default", "steady"):
+        out = subprocess.run([sys.executable, "-c", HEAP_PROBE, mode], capture_output=True, text=True, check=True)
+        mapped[mode] = int(out.stdout.split()[-1])
+    assert mapped["default"] < 1 << 20, mapped  # from the heap
+    assert mapped["steady"] >= 2 << 20, mapped  # a mapping of its own
