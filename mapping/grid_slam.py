@@ -91,6 +91,11 @@ TRACKING_REFINE = True
 SLIP_SCALES = (1.0, 0.75, 0.5, 0.25)  # travel of the base / travel the encoders count
 SLIP_MIN_TRAVEL = 0.05  # [m]
 SLIP_MARGIN = 0.03  # mean likelihood-field value, in [0, 1]
+# Back towards 1 (wheels that grip, the usual floor) the evidence asked is less: SLIP_RETURN. A false step onto
+# ¾ (a straight scan 0.033 better there, no slip) under-predicted each scan by 5 cm along a corridor, where the
+# tight prior could not undo it: the pose was 0.9 m out in 11 s before rung 1 won back by SLIP_MARGIN
+# (bench persist, lab, day 4). Ties do not go back: on the slip test's loop a rung left at the first tie lost 9.8 m.
+SLIP_RETURN = 0.005  # mean likelihood-field value
 # Consecutive matches reuse one likelihood field while the grid has taken at most this many scans since:
 # the field is most of a match's cost, and two scans more of map do not move a tracking match.
 FIELD_MAX_AGE = 2
@@ -239,7 +244,8 @@ class GridSlam:
         for k in (rung - 1, rung + 1):
             if 0 <= k < len(SLIP_SCALES):
                 other = self.matcher.match(self.reference, points, self._predict(odom_pose, SLIP_SCALES[k]), max_range)
-                if other.ok and other.score >= best.score + SLIP_MARGIN:
+                margin = SLIP_RETURN if k < rung else SLIP_MARGIN
+                if other.ok and other.score >= best.score + margin:
                     best, best_scale = other, SLIP_SCALES[k]
         return best, best_scale
 
