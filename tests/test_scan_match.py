@@ -148,3 +148,28 @@ def test_tracking_follows_the_walls_not_the_wheels_while_they_slip(plan: str) ->
     assert slipped[1] > 5.0  # the wheels really slipped
     assert slipped[2] >= 2  # onto a rung and back off it
     assert slipped[0] < 0.25, slipped
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("plan", ["room", "loop"])
+def test_a_false_step_onto_a_slip_rung_is_undone_when_the_wheels_grip(plan: str) -> None:
+    """Half-way round the second lap tracking steps onto ¾ with no slip (as one scan that fits ¾ a little better
+    made it on the lab, day 4). Rung 1 fits at least as well from then on, and is taken back on that (SLIP_RETURN);
+    asked to win by SLIP_MARGIN, as a step away is, it never was, and tracking slid 3.7 m on both plans."""
+    world = truth(plan)
+    poses = path_poses(LAP + LAP[1:], speed=0.4)
+    first = len(poses) // 2 + 40
+    slam = GridSlam(0.05)
+    rng = np.random.default_rng(3)
+    err, back = [], None
+    for i, p in enumerate(poses):
+        t = poses[0].between(p)  # exact encoders: odometry is the truth here
+        if i == first:
+            slam.odom_scale = 0.75
+        slam.update(odometry_msg(i / 5.5, t), cast_scan(world, p, i / 5.5, rng, dropout=0.02))
+        if i >= first:
+            err.append(math.hypot(slam.pose.x - t.x, slam.pose.y - t.y))
+            if back is None and slam.odom_scale == 1.0:
+                back = (i - first) / 5.5
+    assert back is not None and back < 2.0, back  # [s]
+    assert max(err) < 0.15, max(err)
