@@ -154,8 +154,8 @@ def test_tracking_follows_the_walls_not_the_wheels_while_they_slip(plan: str) ->
 @pytest.mark.parametrize("plan", ["room", "loop"])
 def test_a_false_step_onto_a_slip_rung_is_undone_when_the_wheels_grip(plan: str) -> None:
     """Half-way round the second lap tracking steps onto ¾ with no slip (as one scan that fits ¾ a little better
-    made it on the lab, day 4). Rung 1 fits at least as well from then on, and is taken back on that (SLIP_RETURN);
-    asked to win by SLIP_MARGIN, as a step away is, it never was, and tracking slid 3.7 m on both plans."""
+    made it on the lab, day 4). Rung 1 then fits better, if only a little, and is taken back on that (SLIP_RETURN);
+    asked to win by SLIP_MARGIN, as a step away is, it never did, and tracking slid 3.7 m on both plans."""
     world = truth(plan)
     poses = path_poses(LAP + LAP[1:], speed=0.4)
     first = len(poses) // 2 + 40
