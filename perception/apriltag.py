@@ -1,8 +1,8 @@
 """AprilTag (tag36h11) detection and tag measurements in ``base_link`` (Wang & Olson, IROS 2016).
 
 Detection is pupil-apriltags (the AprilTag 3 C library). Each detection's
-pose comes from the homography of its four corners, the intrinsics and the
-tag's size — the edge of the *black square*, not of the printed paper. Weak
+pose comes from its four corners, the intrinsics and the tag's size (OpenCV's
+IPPE for squares, then re-fitted upright) — the edge of the *black square*, not of the printed paper. Weak
 detections are rejected (low decision margin, bit errors, too far, seen too
 obliquely), and what is left becomes a planar measurement of the tag in
 ``base_link``: where its centre is and which way its face looks, with a
@@ -262,6 +262,27 @@ def _fit_upright(params: np.ndarray, corners: np.ndarray, optical_from_base: np.
     return p, cost
 
 
+# The unit square's corners in AprilTag's tag frame (x right, y down, z into the tag), in the order
+# pupil-apriltags gives a detection's corners, and OpenCV's SOLVEPNP_IPPE_SQUARE wants them.
+UNIT_SQUARE = np.array([[-0.5, 0.5, 0.0], [0.5, 0.5, 0.0], [0.5, -0.5, 0.0], [-0.5, -0.5, 0.0]])
+
+
+def square_pose(corners: np.ndarray, info: CameraInfo, size: float) -> np.ndarray:
+    """4 × 4 optical←tag of a square tag of edge ``size`` [m] from its four ``corners`` [px] (pupil's order).
+
+    OpenCV's IPPE for squares (Collins & Bartoli 2014), not pupil-apriltags' own estimate: that one's SVDs
+    (``matd_svd_tall``) leave blocks behind in the AprilTag C library, 0.4 MB a simulated day of the persistent
+    mission (heaptrack). The translation scales with the size and the rotation does not, so the unit square
+    serves every size. Of the planar pose's two solutions this is one; :func:`refine_upright` tries both.
+    """
+    import cv2
+
+    k = np.array([[info.fx, 0.0, info.cx], [0.0, info.fy, info.cy], [0.0, 0.0, 1.0]])
+    _, rvec, tvec = cv2.solvePnP(UNIT_SQUARE, np.ascontiguousarray(corners, float).reshape(4, 1, 2), k, None,
+                                 flags=cv2.SOLVEPNP_IPPE_SQUARE)
+    return homogeneous(cv2.Rodrigues(rvec)[0], tvec.reshape(3) * size)
+
+
 def refine_upright(base_from_tag: np.ndarray, corners: np.ndarray, info: CameraInfo, size: float) -> np.ndarray:
     """Re-fit an upright tag's pose (centre and yaw; no roll or pitch) to its four corners [px].
 
@@ -333,14 +354,12 @@ class TagDetector:
         """Every decoded tag in ``frame``, measured in base_link, before filtering."""
         info = frame.info
         grey = np.ascontiguousarray(frame.grey())
-        # The pose's translation scales with the tag size and its rotation does
-        # not, so one unit-size estimate serves tags of every size.
         with c_stderr_silenced():
-            dets = self._detector.detect(grey, True, (info.fx, info.fy, info.cx, info.cy), 1.0)
+            dets = self._detector.detect(grey)
         out = []
         for d in dets:
             size = self.size_of(d.tag_id)
-            optical_from_tag = homogeneous(np.asarray(d.pose_R), np.asarray(d.pose_t).reshape(3) * size)
+            optical_from_tag = square_pose(np.asarray(d.corners, float), info, size)
             base_from_tag = info.base_from_optical @ optical_from_tag
             if self.upright:
                 base_from_tag = refine_upright(base_from_tag, np.asarray(d.corners, float), info, size)
