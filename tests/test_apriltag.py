@@ -158,3 +158,21 @@ def test_c_stderr_is_silenced_only_inside_the_detection_window(capfd: pytest.Cap
     assert "python before" in err
     assert "C after" in err
     assert "minima" not in err
+
+
+@pytest.mark.parametrize("x, y, facing", [(1.1, 0.0, math.pi), (1.05, 0.25, math.pi - 0.5), (2.0, -0.3, math.pi + 0.4)])
+def test_square_pose_from_the_detectors_corners_is_the_rendered_pose(x, y, facing):
+    """The corners pupil-apriltags finds, in its order, give OpenCV's IPPE the tag's true pose in the optical frame
+    (the corner order and the tag frame agree; the upright re-fit only polishes it)."""
+    import pupil_apriltags
+    from homing.perception.apriltag import square_pose
+
+    frame = _frame(x, y, facing)
+    info = frame.info
+    dets = pupil_apriltags.Detector(families="tag36h11").detect(np.ascontiguousarray(frame.grey()))
+    assert len(dets) == 1
+    got = square_pose(np.asarray(dets[0].corners, float), info, SIZE)
+    want = optical_from_base_pose(info, base_from_tag_planar(x, y, CAM_POS[2], facing))
+    assert np.linalg.norm(got[:3, 3] - want[:3, 3]) < 0.02 * np.linalg.norm(want[:3, 3])  # 2 % of the range
+    normal_error = math.degrees(math.acos(np.clip(got[:3, 2] @ want[:3, 2], -1.0, 1.0)))
+    assert normal_error < 4.0, normal_error  # [deg] the face's direction (z into the tag)
