@@ -1,12 +1,13 @@
 """AprilTag (tag36h11) detection and tag measurements in ``base_link`` (Wang & Olson, IROS 2016).
 
 Detection is pupil-apriltags (the AprilTag 3 C library). Each detection's
-pose comes from its four corners, the intrinsics and the tag's size (OpenCV's
-IPPE for squares, then re-fitted upright) — the edge of the *black square*, not of the printed paper. Weak
-detections are rejected (low decision margin, bit errors, too far, seen too
-obliquely), and what is left becomes a planar measurement of the tag in
-``base_link``: where its centre is and which way its face looks, with a
-covariance that grows with range and viewing angle.
+pose comes from its four corners, the intrinsics and the tag's size — the
+edge of the *black square*, not of the printed paper — by OpenCV's IPPE for
+squares, then re-fitted upright. Weak detections are rejected (low
+decision margin, bit errors, too far, seen too obliquely), and what is left
+becomes a planar measurement of the tag in ``base_link``: where its centre
+is and which way its face looks, with a covariance that grows with range
+and viewing angle.
 
 Conventions. AprilTag's tag frame has x right and y down as the tag is read
 and z *into* the tag. A tag's planar pose here is its centre (x, y) and the
