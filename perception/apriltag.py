@@ -278,8 +278,7 @@ def square_pose(corners: np.ndarray, info: CameraInfo, size: float) -> np.ndarra
     """
     import cv2
 
-    k = np.array([[info.fx, 0.0, info.cx], [0.0, info.fy, info.cy], [0.0, 0.0, 1.0]])
-    _, rvec, tvec = cv2.solvePnP(UNIT_SQUARE, np.ascontiguousarray(corners, float).reshape(4, 1, 2), k, None,
+    _, rvec, tvec = cv2.solvePnP(UNIT_SQUARE, np.ascontiguousarray(corners, float).reshape(4, 1, 2), info.K(), None,
                                  flags=cv2.SOLVEPNP_IPPE_SQUARE)
     return homogeneous(cv2.Rodrigues(rvec)[0], tvec.reshape(3) * size)
 
