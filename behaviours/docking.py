@@ -40,7 +40,7 @@ from homing.navigation.dock_drive import SERVOED_SLOW_ZONE, SLOW_ZONE, DockDrive
 from homing.navigation.recovery import BackUp as BackUpMotion
 from homing.navigation.recovery import MotionStatus
 from homing.navigation.recovery import Spin as SpinMotion
-from homing.navigation.tag_servo import ServoStatus, Sighting, TagServo, staging_in_tag
+from homing.navigation.tag_servo import SEARCH_ANGLE, XY_TOLERANCE, YAW_TOLERANCE, ServoStatus, Sighting, TagServo, staging_in_tag
 from homing.robot import ChargingSource, Observation, Pose2
 from homing.robot.frames import wrap_angle
 from py_trees.common import Status
@@ -181,9 +181,9 @@ class ServoToStaging(_ReportsFailure):
     PARAMS = (
         Param("tag", int, 0, "", "id of the tag above the dock", minimum=0),
         Param("staging_distance", float, STAGING_DISTANCE, "m", "how far in front of the docked pose", above=0.0),
-        Param("xy_tolerance", float, 0.02, "m", "reached within this distance", above=0.0),
-        Param("yaw_tolerance", float, math.radians(1.5), "rad", "and this heading error", above=0.0),
-        Param("search_angle", float, math.radians(70.0), "rad", "sweep this far each way to find the tag", above=0.0),
+        Param("xy_tolerance", float, XY_TOLERANCE, "m", "reached within this distance", above=0.0),
+        Param("yaw_tolerance", float, YAW_TOLERANCE, "rad", "and this heading error", above=0.0),
+        Param("search_angle", float, SEARCH_ANGLE, "rad", "sweep this far each way to find the tag", above=0.0),
         FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
@@ -191,8 +191,8 @@ class ServoToStaging(_ReportsFailure):
     WRITES = (CMD_VEL_KEY, FOCUS_KEY, STAGED_KEY, "$failure_key")
 
     def __init__(self, name: str, tag: int = 0, staging_distance: float = STAGING_DISTANCE,
-                 xy_tolerance: float = 0.02, yaw_tolerance: float = math.radians(1.5),
-                 search_angle: float = math.radians(70.0), timeout: float = 60.0,
+                 xy_tolerance: float = XY_TOLERANCE, yaw_tolerance: float = YAW_TOLERANCE,
+                 search_angle: float = SEARCH_ANGLE, timeout: float = 60.0,
                  failure_key: str = FAILURE_KEY) -> None:
         self.failure_key = failure_key
         super().__init__(name, timeout=timeout)

@@ -19,7 +19,10 @@ Phases, each on odometry alone between sightings:
 1. SEARCH — no sighting yet: sweep in place, left to ``search_angle``, right
    to −``search_angle``, back to the start; FAILED (``no_tag``) after that.
 2. APPROACH — turn towards the goal point, drive to it (backwards if it lies
-   just behind), slowing as it closes.
+   just behind), slowing as it closes (``K_V`` per metre to go, never below
+   ``MIN_V``: at 0.8 and no floor the last 10 cm took 2 s; over the 100 runs
+   of ``homing bench dock`` gain 1.5 and floor 5 cm/s saved 1.2 s, the median
+   of the paired differences).
 3. ALIGN — turn on the spot to the goal heading; SUCCEEDED within the
    tolerances once the base is still (its measured turn below
    ``SETTLED_OMEGA``, speed below ``SETTLED_V``; it is told to stop while
@@ -53,7 +56,8 @@ XY_TOLERANCE = 0.02  # [m] goal reached
 YAW_TOLERANCE = math.radians(1.5)  # [rad]
 MAX_V = 0.20  # [m/s]
 MAX_OMEGA = 1.2  # [rad/s]
-K_V = 0.8  # [1/s] speed per metre to go
+K_V = 1.5  # [1/s] speed per metre to go
+MIN_V = 0.05  # [m/s] never slower than this while driving to the goal (kobuki creeps into its dock at 0.05)
 K_OMEGA = 3.0  # [1/s] turn rate per radian of heading error
 MIN_OMEGA = 0.12  # [rad/s] the base does not turn slower than this reliably
 SETTLED_OMEGA = 0.15  # [rad/s] measured turn rate under which the base counts as still (above MIN_OMEGA)
@@ -178,7 +182,7 @@ class TagServo:
         self.message = f"{100 * dist:.0f} cm to the goal{' (backwards)' if backwards else ''}"
         if abs(heading_err) > DRIVE_HEADING:
             return Twist2(0.0, self._turn(heading_err))
-        v = min(self.max_v, K_V * dist) * (-1.0 if backwards else 1.0)
+        v = min(self.max_v, max(K_V * dist, MIN_V)) * (-1.0 if backwards else 1.0)
         return Twist2(v, float(np.clip(K_OMEGA * heading_err, -self.max_omega, self.max_omega)))
 
     def _search(self, odom: Pose2) -> Twist2:

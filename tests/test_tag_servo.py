@@ -162,3 +162,45 @@ def test_without_the_stillness_check_the_late_base_swings_past_the_goal() -> Non
     runs = [_turn_with_dead_time(TagServo(goal_in_tag=Pose2()), math.radians(g), check_still=False) for g in GOALS]
     assert max(abs(r) for r, _ in runs) > 4 * SETTLED_OMEGA
     assert max(abs(math.degrees(e)) for _, e in runs) > 5.0
+
+
+def _drive_with_dead_time(servo: TagServo, ahead: float) -> tuple[float, float]:
+    """Drive to a goal ``ahead`` [m] straight in front, on the late base of :func:`_turn_with_dead_time`.
+
+    Returns (time to SUCCEEDED [s], distance short of the goal once the base is at rest [m], negative past it).
+    """
+    late, tick, dt = 0.25, 0.2, 0.005
+    servo.start(0.0, Pose2())
+    servo.see(Sighting(0.0, Pose2(ahead, 0.0, 0.0), np.diag([1e-6, 1e-6, 1e-6])))
+    x = v = t = 0.0
+    due: list[tuple[float, float]] = []
+
+    def run(seconds: float) -> None:
+        nonlocal x, v, t
+        for _ in range(round(seconds / dt)):
+            while due and due[0][0] <= t + 1e-9:
+                v = due.pop(0)[1]
+            x += v * dt
+            t += dt
+
+    while servo.status not in (ServoStatus.SUCCEEDED, ServoStatus.FAILED):
+        assert t < 30.0, servo.message
+        cmd = servo.step(t, Pose2(x, 0.0, 0.0), Twist2(v, 0.0))
+        due.append((t + late, cmd.v))
+        run(tick)
+    took = t
+    due.append((t + late, 0.0))
+    run(3 * late)
+    return took, ahead - x
+
+
+@pytest.mark.parametrize("ahead", [0.05, 0.10, 0.30])
+def test_drives_the_last_centimetres_briskly_and_stops_on_them_on_a_late_base(ahead: float) -> None:
+    # Speed K_V = 1.5 per metre to go: 10 cm in 1.6 s and 30 cm in 2.4 s, success included (at gain 0.8:
+    # 2.0 s and 3.0 s), and still within the 2 cm tolerance at rest, though each command takes hold 0.25 s late.
+    servo = TagServo(goal_in_tag=Pose2())
+    took, short = _drive_with_dead_time(servo, ahead)
+    assert servo.status is ServoStatus.SUCCEEDED
+    assert abs(short) <= servo.xy_tolerance
+    if ahead >= 0.1:  # a 5 cm drive is all waiting for the late base to be still: 1.4 s at either gain
+        assert took <= 1.25 + 4.0 * ahead
