@@ -40,7 +40,15 @@ from homing.navigation.dock_drive import SERVOED_SLOW_ZONE, SLOW_ZONE, DockDrive
 from homing.navigation.recovery import BackUp as BackUpMotion
 from homing.navigation.recovery import MotionStatus
 from homing.navigation.recovery import Spin as SpinMotion
-from homing.navigation.tag_servo import SEARCH_ANGLE, XY_TOLERANCE, YAW_TOLERANCE, ServoStatus, Sighting, TagServo, staging_in_tag
+from homing.navigation.tag_servo import (
+    SEARCH_ANGLE,
+    XY_TOLERANCE,
+    YAW_TOLERANCE,
+    ServoStatus,
+    Sighting,
+    TagServo,
+    staging_in_tag,
+)
 from homing.robot import ChargingSource, Observation, Pose2
 from homing.robot.frames import wrap_angle
 from py_trees.common import Status
