@@ -54,6 +54,7 @@ PRIOR_THETA = math.radians(3.0)  # [rad] same, for heading
 PRIOR_PENALTY = 0.01  # weight of the prior in the correlative score, per point
 GN_ANCHOR_XY = 0.05  # [m] std-dev of the pull towards the correlative optimum in Gauss–Newton
 GN_ANCHOR_THETA = math.radians(2.0)  # [rad]
+GN_ANCHOR_INFO = np.diag([1 / GN_ANCHOR_XY**2, 1 / GN_ANCHOR_XY**2, 1 / GN_ANCHOR_THETA**2])  # per end point
 MIN_SCORE = 0.25  # mean field value the best pose must reach to be trusted
 MIN_POINTS = 30  # fewer scan end points than this: no match
 FIELD_MARGIN = 1.0  # [m] a reusable field is computed this much wider than one match needs
@@ -202,15 +203,22 @@ class CorrelativeMatcher:
         Points farther than ``max_range`` [m] are not used: set it a metre
         or so under the sensor's range (see the comment in the code).
         """
+        prepared = self._prepare(grid, points, prior, max_range)
+        if prepared is None:
+            return MatchResult(prior, 0.0, False)
+        return self.match_field(prepared[1], prepared[0], prior)
+
+    def _prepare(self, grid: OccupancyGrid, points: np.ndarray, near: Pose2,
+                 max_range: float) -> tuple[np.ndarray, LikelihoodField] | None:
+        """The end points within ``max_range`` and the field around ``near`` they are matched on (None: too few)."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         # End points near the edge of the sensor's reach land where earlier scans did not reach:
         # they would pull the pose backwards onto walls already mapped.
         pts = pts[np.hypot(pts[:, 0], pts[:, 1]) <= max_range]
         if len(pts) < MIN_POINTS:
-            return MatchResult(prior, 0.0, False)
+            return None
         reach = min(float(np.max(np.hypot(pts[:, 0], pts[:, 1]))), max_range)
-        field = self._field(grid, prior, reach + self.window_xy + 4 * self.sigma)
-        return self.match_field(field, pts, prior)
+        return pts, self._field(grid, near, reach + self.window_xy + 4 * self.sigma)
 
     def match_field(self, field: LikelihoodField, points: np.ndarray, prior: Pose2) -> MatchResult:
         """Best pose of ``points`` (M, 2) [m, base_link] on a prepared ``field`` near ``prior`` [map]."""
@@ -220,7 +228,7 @@ class CorrelativeMatcher:
         sub = pts[:: max(1, len(pts) // MAX_POINTS)]
         best = self._correlative(field, sub, prior)
         if self.refine:
-            best = self._gauss_newton(field, pts, best, prior)
+            best = self._gauss_newton(field, pts, best)
         score = float(_score(field, pts, best))
         known, known_score = _known_fit(field, pts, best)
         return MatchResult(best, score, score >= self.min_score, known, known_score, int(round(known * len(pts))))
@@ -270,27 +278,34 @@ class CorrelativeMatcher:
         return Pose2(x, y, th)
 
     # ----------------------------------------------------------- Gauss–Newton
-    def _gauss_newton(self, field: LikelihoodField, pts: np.ndarray, start: Pose2, prior: Pose2) -> Pose2:
+    def polish(self, grid: OccupancyGrid, points: np.ndarray, pose: Pose2, max_range: float,
+               anchor_xy: float) -> Pose2:
+        """Gauss–Newton on ``grid`` from ``pose``, pulled towards it by ``anchor_xy`` [m] per end point.
+
+        :meth:`match` refines its correlative optimum with a tight pull (``GN_ANCHOR_XY``, for a fair
+        comparison of matches from different predictions); a tracker that has chosen one polishes it with a
+        looser pull. Returns ``pose`` if the fit does not improve.
+        """
+        prepared = self._prepare(grid, points, pose, max_range)
+        if prepared is None:
+            return pose
+        anchor = np.diag([1 / anchor_xy**2, 1 / anchor_xy**2, 1 / GN_ANCHOR_THETA**2])
+        return self._gauss_newton(prepared[1], prepared[0], pose, anchor)
+
+    def _gauss_newton(self, field: LikelihoodField, pts: np.ndarray, start: Pose2,
+                      anchor: np.ndarray = GN_ANCHOR_INFO) -> Pose2:
+        """Refine ``start`` on ``field``, pulled towards it with information ``anchor`` (3, 3) per end point."""
         xi = start.as_array().astype(float)
         # Anchor at the correlative optimum (itself tied to odometry where the scan is ambiguous): the
         # refinement is for sub-cell accuracy and must not slide along a corridor.
         p0 = start.as_array()
-        w_prior = np.array([1 / GN_ANCHOR_XY**2, 1 / GN_ANCHOR_XY**2, 1 / GN_ANCHOR_THETA**2])
+        w_prior = anchor * len(pts)
         for _ in range(GN_ITERATIONS):
-            c, s = math.cos(xi[2]), math.sin(xi[2])
-            wx = xi[0] + c * pts[:, 0] - s * pts[:, 1]
-            wy = xi[1] + s * pts[:, 0] + c * pts[:, 1]
-            m, gx, gy = _bilinear(field, wx, wy)
-            # d(world point)/d(theta) = (−s·px − c·py, c·px − s·py)
-            dth = gx * (-s * pts[:, 0] - c * pts[:, 1]) + gy * (c * pts[:, 0] - s * pts[:, 1])
-            # Points on cells never observed carry no evidence, only a pull towards mapped walls.
-            k = _known(field, wx, wy)
-            J = np.column_stack([gx, gy, dth]) * k[:, None]  # (M, 3) gradient of M w.r.t. the pose
-            r = (1.0 - m) * k
-            H = J.T @ J + np.diag(w_prior * len(pts))
+            J, r = _residuals(field, pts, xi)
+            H = J.T @ J + w_prior
             d = p0 - xi
             d[2] = math.atan2(math.sin(d[2]), math.cos(d[2]))
-            g = J.T @ r + w_prior * len(pts) * d
+            g = J.T @ r + w_prior @ d
             try:
                 delta = np.linalg.solve(H, g)
             except np.linalg.LinAlgError:
@@ -304,6 +319,21 @@ class CorrelativeMatcher:
         out = Pose2.from_array(xi)
         # Keep the refinement only if it does not make the fit worse.
         return out if _score(field, pts, out) >= _score(field, pts, start) else start
+
+
+def _residuals(field: LikelihoodField, pts: np.ndarray, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobian (M, 3) of the field value at each end point w.r.t. the pose ``xi``, and residuals 1 − value.
+
+    Points on cells never observed carry no evidence, only a pull towards mapped walls: both are zero there.
+    """
+    c, s = math.cos(xi[2]), math.sin(xi[2])
+    wx = xi[0] + c * pts[:, 0] - s * pts[:, 1]
+    wy = xi[1] + s * pts[:, 0] + c * pts[:, 1]
+    m, gx, gy = _bilinear(field, wx, wy)
+    # d(world point)/d(theta) = (−s·px − c·py, c·px − s·py)
+    dth = gx * (-s * pts[:, 0] - c * pts[:, 1]) + gy * (c * pts[:, 0] - s * pts[:, 1])
+    k = _known(field, wx, wy)
+    return np.column_stack([gx, gy, dth]) * k[:, None], (1.0 - m) * k
 
 
 def _search(

@@ -53,6 +53,9 @@ def test_grid_slam_keeps_the_gyro_heading_and_odometry_accuracy_while_exploring_
     turned the map by ~0.9° in the first seconds (the gyro was off by 0.08°) and the pose error grew to twice
     odometry's: every later scan was matched to the turned map. One seed is a noisy measure of this (seed 2:
     SLAM 0.32° against the gyro's 0.15°, seed 4: 0.77° against 0.93°), so the means over four are compared.
+    Tracking must also beat odometry's position by a margin: while Gauss-Newton was held at the correlative
+    search's 5 cm steps (no polish, grid_slam.POLISH_XY), it was odometry's within a centimetre (4.1 cm mean
+    against 5.2 cm); polished, 2.8 cm against 6.2 cm.
     """
     runs = [_first_minute_errors(seed) for seed in (1, 2, 3, 4)]
     for slam, _ in runs:
@@ -60,4 +63,4 @@ def test_grid_slam_keeps_the_gyro_heading_and_odometry_accuracy_while_exploring_
     slam_deg, odom_deg = (float(np.mean([r[i][:, 1].mean() for r in runs])) for i in (0, 1))
     slam_m, odom_m = (float(np.mean([r[i][:, 0].mean() for r in runs])) for i in (0, 1))
     assert slam_deg < odom_deg + 0.1, (slam_deg, odom_deg)  # [deg]
-    assert slam_m < 1.2 * odom_m + 0.01, (slam_m, odom_m)  # [m]
+    assert slam_m < 0.6 * odom_m, (slam_m, odom_m)  # [m]

@@ -173,3 +173,29 @@ def test_a_false_step_onto_a_slip_rung_is_undone_when_the_wheels_grip(plan: str)
                 back = (i - first) / 5.5
     assert back is not None and back < 2.0, back  # [s]
     assert max(err) < 0.15, max(err)
+
+
+@pytest.mark.parametrize(("plan", "pose"), [("room_with_corner", Pose2(-4.0, -3.0, 0.4)),
+                                             ("room", Pose2(-2.0, 1.0, 1.0)), ("loop", Pose2(-8.4, -8.4, 0.3))])
+def test_polish_moves_a_pose_a_few_centimetres_off_towards_the_walls_where_the_tight_refinement_holds_it(
+        plan: str, pose: Pose2) -> None:
+    # What GridSlam's polish is for: match()'s Gauss-Newton is pulled to the correlative optimum by GN_ANCHOR_XY
+    # per end point, which holds a pose 3.5 cm off (under the search's 5 cm step) where it is: it closes about
+    # 1 % of the offset, the polish's looser pull (POLISH_XY) 40-55 % per scan.
+    from homing.mapping.grid_slam import POLISH_XY
+    from homing.mapping.scan_match import GN_ANCHOR_XY
+
+    world = truth(plan)
+    rng = np.random.default_rng(5)
+    grid = OccupancyGrid(0.05)
+    for _ in range(4):
+        grid.integrate(cast_scan(world, pose, 0.0, rng), pose)
+    pts = cast_scan(world, pose, 0.0, rng).points()
+    matcher = CorrelativeMatcher(refine=True)
+    for dx, dy in [(0.03, -0.02), (-0.025, -0.025), (0.0, 0.035)]:
+        off = Pose2(pose.x + dx, pose.y + dy, pose.theta)
+        loose = matcher.polish(grid, pts, off, 8.0, POLISH_XY)
+        tight = matcher.polish(grid, pts, off, 8.0, GN_ANCHOR_XY)
+        assert loose.distance_to(pose) < 0.7 * off.distance_to(pose), loose
+        assert tight.distance_to(pose) > 0.95 * off.distance_to(pose), tight
+        assert abs(loose.theta - pose.theta) < math.radians(0.3)
