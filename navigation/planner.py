@@ -336,10 +336,17 @@ def _march(weights: np.ndarray, source: tuple[int, int], speed: bool,
     er, ec = exact if exact is not None else source
     phi = np.hypot(rr - er, cc - ec) - SOURCE_RADIUS
     phi = np.ma.MaskedArray(phi, mask=blocked)
-    if speed:
-        out = skfmm.travel_time(phi, 1.0 / np.where(blocked, 1.0, weights), dx=1.0)
-    else:
-        out = skfmm.distance(phi, dx=1.0)
+    try:
+        if speed:
+            out = skfmm.travel_time(phi, 1.0 / np.where(blocked, 1.0, weights), dx=1.0)
+        else:
+            out = skfmm.distance(phi, dx=1.0)
+    except ValueError as err:
+        if "zero contour" not in str(err):
+            raise
+        # Every cell the circle reaches beyond the source is blocked (a start in a pocket its footprint does
+        # not fit, freed alone by the escape): nothing but the source is reachable.
+        out = np.ma.masked_all(weights.shape)
     t = np.ma.filled(np.ma.MaskedArray(out).astype(np.float64), np.inf) + SOURCE_RADIUS
     t[source] = math.hypot(source[0] - er, source[1] - ec)
     return t

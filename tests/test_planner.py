@@ -105,6 +105,24 @@ def test_distance_map_is_euclidean_in_the_open_and_inf_where_unreachable() -> No
     assert np.all(np.isinf(d[cm.cost >= 253]))  # where the footprint does not fit
 
 
+@pytest.mark.parametrize("ring", [0.16, 0.20, 0.25])
+def test_a_start_walled_in_tighter_than_the_footprint_reaches_nothing_and_plans_fail_typed(ring: float) -> None:
+    # bench persist, seed 1, day 5: home (the staging pose) fell in such a pocket of the costmap:
+    # the escape freed the start cell alone and fast marching raised ValueError (no zero contour): a traceback.
+    g = np.zeros((60, 60), dtype=np.int8)
+    rr, cc = np.indices(g.shape)
+    d = np.hypot(rr - 30, cc - 30) * RES
+    g[(d >= ring) & (d < ring + 0.06)] = 100  # a ring of wall around cell (30, 30), the footprint does not fit
+    cm = Costmap()
+    cm.set_static(g, RES, (0.0, 0.0))
+    start = Pose2(30.5 * RES, 30.5 * RES)
+    out = distance_map(cm, start)
+    assert np.argwhere(np.isfinite(out)).tolist() == [[30, 30]] and out[30, 30] < RES
+    for name in sorted(PLANNERS):
+        with pytest.raises(NoPathFound):
+            make_planner(name).plan(cm, start, Pose2(0.5, 0.5))
+
+
 def test_distance_map_in_the_maze_matches_the_optimum(maze: Costmap, optimum: tuple[float, float]) -> None:
     d = distance_map(maze, Pose2(*MAZE_START))
     rc = maze.world_to_cell(np.array(MAZE_GOAL))[0]
