@@ -137,7 +137,6 @@ class Life:
 def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes: bool,
          progress: Any) -> dict[str, Any]:
     """Run the persistent mission for ``horizon`` [s]; resets (interventions) when it cannot carry on."""
-    from homing.benchmarks.common import run_to_end
     from homing.lifecycle.rundir import RunDir
     from homing.missions.compiler import compile_mission
     from homing.missions.loader import resolve_mission
@@ -161,7 +160,9 @@ def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes
             while robot.clock.now() < horizon - 1e-6:
                 runner = Runner(mission, robot, seed=seed, until=horizon - robot.clock.now(), run_dir=run_dir,
                                 resume=snap, on_tick=life, timing=timing)
-                result = run_to_end(runner)  # Ctrl-C or SIGTERM stops the benchmark, not one life of the robot
+                result = runner.run()
+                if result.reason == "interrupted" and life.stuck is None:
+                    raise KeyboardInterrupt  # Ctrl-C or SIGTERM stops the benchmark, not one life of the robot
                 if result.reason == "time_limit":
                     break
                 # It could not carry on: a person puts it back on its dock, charged, and restarts it.

@@ -68,3 +68,17 @@ def test_bench_persist_stops_on_a_signal_instead_of_counting_an_intervention(mon
     monkeypatch.setattr(runner_module, "stop_requested", lambda: True)
     with pytest.raises(KeyboardInterrupt):
         live("lab", 1, 3600.0, 0.0, False, lambda t: None)
+
+
+def test_bench_persist_counts_a_robot_that_stays_away_from_its_dock_as_an_intervention(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The bench stops a run whose robot has not docked for STUCK hours (as it stops one on a signal), and that
+    stop is an intervention the bench counts and recovers from, not a Ctrl-C: bench persist seed 2 ended at 30.3
+    simulated hours with "interrupted by Ctrl-C" that nobody pressed."""
+    import homing.benchmarks.persist as persist
+
+    monkeypatch.setattr(persist, "STUCK", 30.0 / 3600.0)  # 30 s off the dock: the first trip out is "stuck"
+    out = persist.live("lab", 1, 240.0, 0.0, False, lambda t: None)
+    assert out["interventions"], "the robot left its dock for more than 30 s and no intervention was counted"
+    assert all(why == "no dock for 0.00833333 h" for _, why in out["interventions"]), out["interventions"]
+    assert out["time"] >= 240.0 - 1e-6  # and the bench carried on to its horizon after each
