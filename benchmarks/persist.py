@@ -19,7 +19,10 @@ resident memory over time (``--plot`` draws it), wall time and the real-time
 factor — and where the wall time went, part by part of the tick (the
 runner's own timing). JSON keys: ``dock_cycles``, ``interventions``,
 ``min_battery_pct``, ``rss_growth_after_1h_pct``, ``rtf``, ``map_agreement_min``
-(and ``map_agreement_aligned_min``).
+(and ``map_agreement_aligned_min``). Stopped by Ctrl-C or SIGTERM, it prints
+and writes the figures of the time it simulated (``interrupted``,
+``simulated_days``) and exits with the signal's status: a week's run stopped on
+day 5 keeps its five days.
 """
 
 from __future__ import annotations
@@ -136,7 +139,8 @@ class Life:
 
 def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes: bool,
          progress: Any) -> dict[str, Any]:
-    """Run the persistent mission for ``horizon`` [s]; resets (interventions) when it cannot carry on."""
+    """Run the persistent mission for ``horizon`` [s]; resets (interventions) when it cannot carry on. A stop
+    signal ends it early with ``interrupted`` True and the figures of the time simulated so far."""
     from homing.lifecycle.rundir import RunDir
     from homing.missions.compiler import compile_mission
     from homing.missions.loader import resolve_mission
@@ -152,6 +156,7 @@ def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes
     life = Life(robot, world, horizon, progress)
     timing: dict[str, float] = {}
     interventions: list[tuple[float, str]] = []
+    interrupted = False
     wall0 = time.monotonic()
     with tempfile.TemporaryDirectory() as tmp:
         run_dir = RunDir(Path(tmp) / "run")
@@ -162,7 +167,8 @@ def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes
                                 resume=snap, on_tick=life, timing=timing)
                 result = runner.run()
                 if result.reason == "interrupted" and life.stuck is None:
-                    raise KeyboardInterrupt  # Ctrl-C or SIGTERM stops the benchmark, not one life of the robot
+                    interrupted = True  # Ctrl-C or SIGTERM stops the benchmark, not one life of the robot
+                    break
                 if result.reason == "time_limit":
                     break
                 # It could not carry on: a person puts it back on its dock, charged, and restarts it.
@@ -177,7 +183,8 @@ def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes
             robot.close()
     wall = time.monotonic() - wall0
     return {"life": life, "timing": timing, "interventions": interventions, "wall": wall,
-            "changes": len(world_changes), "faults": len(robot.faults), "time": robot.clock.now()}
+            "changes": len(world_changes), "faults": len(robot.faults), "time": robot.clock.now(),
+            "interrupted": interrupted}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -186,6 +193,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from homing.errors import UserError
+    from homing.signals import exit_status, received, signal_name
 
     if not (math.isfinite(args.days) and args.days > 0):
         raise UserError(f"--days must be a positive number, not {args.days:g}")
@@ -206,7 +214,9 @@ def run(args: argparse.Namespace) -> int:
     growth = 100.0 * (rss[-1][1] - at_1h) / at_1h
     agree = [a for _, a in life.agreement]
     days = []
-    for d in range(math.ceil(args.days)):
+    # A stop signal ends the run early: its figures are the time simulated so far, printed and written as such.
+    cut = f", interrupted by {signal_name(received())} at {sim / 3600:.2f} h" if out["interrupted"] else ""
+    for d in range(max(1, math.ceil(min(args.days, sim / DAY)))):
         lo, hi = d * DAY, (d + 1) * DAY
         # RSS swings by tens of MB within a day (allocator and arrays that come and go): the day's median shows
         # growth, the max the peak, the last sample against the first hour's (the JSON key) neither reliably.
@@ -216,8 +226,8 @@ def run(args: argparse.Namespace) -> int:
                      min((a for t, a in life.aligned if lo <= t < hi), default=math.nan),
                      float(np.median(held)) if held else math.nan,
                      max((m for t, m in rss if lo <= t < hi), default=math.nan)])
-    print_table(f"bench persist: {args.world}, {args.days:g} day(s), seed {args.seed}, {out['changes']} world changes, "
-                f"{out['faults']} faults", ["day", "dock cycles", "agreement min", "aligned min",
+    print_table(f"bench persist: {args.world}, {args.days:g} day(s){cut}, seed {args.seed}, {out['changes']} world "
+                f"changes, {out['faults']} faults", ["day", "dock cycles", "agreement min", "aligned min",
                                                   "RSS MB median", "RSS MB max"],
                 days)
     summary = [["dock cycles", life.cycles], ["interventions", len(out["interventions"])],
@@ -225,12 +235,12 @@ def run(args: argparse.Namespace) -> int:
                ["area mapped m²", life.area], ["map agreement min", min(agree, default=math.nan)],
                ["map agreement min, aligned", min((a for _, a in life.aligned), default=math.nan)],
                ["RSS growth after 1 h %", growth], ["wall time s", wall], ["real-time factor", sim / wall],
-               ["wall per simulated day min", wall / (sim / DAY) / 60.0]]
+               ["wall per simulated day min", wall / max(sim / DAY, 1e-9) / 60.0]]
     print_table("in all", ["figure", "value"], summary)
     total = sum(out["timing"].values())
     parts = sorted(out["timing"].items(), key=lambda kv: -kv[1])
     print_table("where the wall time went (the runner's timing)", ["part", "% of ticks", "ms per sim min"],
-                [[k, 100 * v / total, 1e3 * v / (sim / 60.0)] for k, v in parts])
+                [[k, 100 * v / total, 1e3 * v / max(sim / 60.0, 1e-9)] for k, v in parts])
     states = sorted(life.states.items(), key=lambda kv: -kv[1][1])
     print_table("where the wall time went, by mission state", ["state", "% of sim time", "% of wall", "wall ms per sim s"],
                 [[k, 100 * v[0] / max(sim, 1e-9), 100 * v[1] / max(wall, 1e-9), 1e3 * v[1] / max(v[0], 1e-9)]
@@ -246,9 +256,10 @@ def run(args: argparse.Namespace) -> int:
         "map_agreement_aligned_min": min((a for _, a in life.aligned), default=math.nan),
         "map_agreement_aligned": life.aligned,
         "area_mapped_m2": life.area, "timing_s": out["timing"], "days": args.days, "world": args.world,
+        "interrupted": out["interrupted"], "simulated_days": sim / DAY,
         "seed": args.seed, "rss_median_by_day_mb": [row[4] for row in days], "states_s": {k: {"sim": v[0], "wall": v[1]} for k, v in life.states.items()},
     })
-    return 0
+    return exit_status(received()) if out["interrupted"] else 0
 
 
 def _plot(path: str, rss: list[tuple[float, float]]) -> None:

@@ -66,8 +66,31 @@ def test_bench_persist_stops_on_a_signal_instead_of_counting_an_intervention(mon
     from homing.benchmarks.persist import live
 
     monkeypatch.setattr(runner_module, "stop_requested", lambda: True)
-    with pytest.raises(KeyboardInterrupt):
-        live("lab", 1, 3600.0, 0.0, False, lambda t: None)
+    out = live("lab", 1, 3600.0, 0.0, False, lambda t: None)
+    assert out["interrupted"] and not out["interventions"]
+    assert out["time"] < 1.0  # it stopped at once, not after a restart
+
+
+def test_bench_persist_interrupted_writes_the_figures_of_the_time_it_simulated(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """A week's run stopped on day 5 keeps its figures: the tables and the JSON cover the time simulated, say that
+    it was interrupted, and the exit status is the signal's."""
+    import argparse
+    import json
+
+    import homing.missions.runner as runner_module
+    from homing.benchmarks import persist
+
+    ticks = iter(range(10**9))
+    monkeypatch.setattr(runner_module, "stop_requested", lambda: next(ticks) >= 400)  # ~40 s at 10 Hz
+    path = tmp_path / "persist.json"
+    args = argparse.Namespace(world="lab", seed=1, days=1.0, fault_every="0", no_changes=True, json=str(path),
+                              plot=None)
+    assert persist.run(args) == 130
+    data = json.loads(path.read_text())
+    assert data["interrupted"] is True
+    assert 20.0 / persist.DAY < data["simulated_days"] < 120.0 / persist.DAY
+    assert data["interventions"] == 0 and data["days"] == 1.0
 
 
 def test_bench_persist_counts_a_robot_that_stays_away_from_its_dock_as_an_intervention(
