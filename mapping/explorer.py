@@ -25,7 +25,8 @@ its footprint from where it is, whatever the costmap says. None left (but
 those behind gaps narrower than the robot and those blacklisted): done, with
 the robot's coverage estimate and the frontiers given up and why. A site the
 costmap still reaches but the strategy declined (too small for its rule) is
-visited anyway. A site the costmap cuts off (inflation in a doorway, a
+visited anyway: the robot stands against it, or for a door seen only at a
+grazing angle (a peek site) within ``PEEK`` of it, to look through. A site the costmap cuts off (inflation in a doorway, a
 transient obstacle, a localisation error) is a failure with a typed reason,
 ``frontier_cut_off`` (or ``frontier_not_cleared`` when the only sites left
 are next to the robot), for the mission's recoveries to act on; after
@@ -48,6 +49,7 @@ import cv2
 import numpy as np
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.reachable import (
+    PEEK,
     FrontierReport,
     FrontierSite,
     GivenUp,
@@ -195,17 +197,20 @@ class Explorer:
         if not open_sites or getattr(self.strategy, "ends_without_goal", False):
             return ExploreStep(None, True, True, None, report=report)
         ctx = self._context(grid, pose, distance)
-        beside = _beside(distance, self.robot_radius, grid.resolution)
+        # Stand where the footprint touches the site (a peek site: within PEEK of it, to look).
+        radius = {False: self.robot_radius, True: max(self.robot_radius, PEEK - grid.resolution)}
+        beside = {peek: _beside(distance, rad, grid.resolution) for peek, rad in radius.items()
+                  if any(site.peek == peek for site in open_sites)}
         best: tuple[float, FrontierSite, tuple[int, int]] | None = None
         near_any = False
         for site in open_sites:
-            d = beside[site.cells[:, 0], site.cells[:, 1]]
+            d = beside[site.peek][site.cells[:, 0], site.cells[:, 1]]
             near_any |= bool(np.isfinite(d).any())
-            # Stand where the footprint touches the site: the reachable cell nearest to its closest cell.
+            # The reachable cell nearest to the site's closest cell.
             i = int(np.argmin(d))
             if not np.isfinite(d[i]):
                 continue
-            cell = _stand_cell(distance, ctx.excluded, tuple(site.cells[i]), self.robot_radius, grid.resolution)
+            cell = _stand_cell(distance, ctx.excluded, tuple(site.cells[i]), radius[site.peek], grid.resolution)
             if cell is not None and (best is None or d[i] < best[0]):
                 best = (float(d[i]), site, cell)
         if best is not None:

@@ -95,6 +95,37 @@ def test_a_gap_narrower_than_the_robot_is_reported_once_and_exploration_ends() -
     assert len(frontier_report(_grid(g2), (_pose(robot).x, _pose(robot).y)).reachable) == 1
 
 
+def test_a_door_seen_only_at_a_grazing_angle_is_looked_at_not_given_up_as_narrow() -> None:
+    """A 0.9 m door the lidar saw only from far along the wall: a sliver of free cells along one jamb and into
+    room B, the rest of the doorway unknown. The footprint does not fit in what is known of it, but walls do not
+    make it narrow: it is a peek site, and the robot goes to stand in front of the door (office:6 seed 1 ended
+    with such a door reported narrower than the robot and the room behind it never entered)."""
+    from homing.mapping.reachable import PEEK
+
+    g = _two_rooms(door=0.9, beyond_seen=0.0)
+    half = int(round(0.9 / 2 / RES))
+    g[40 - half + 2 : 40 + half, 88:90] = UNKNOWN  # only two rows of the doorway seen, along its lower jamb ...
+    g[40 - half : 40 - half + 2, 90:100] = FREE  # ... and a grazing ray's sliver into room B
+    robot = (40, 40)
+    grid = _grid(g)
+    dist = travel_distance(g, RES, robot)
+    report = frontier_report(grid, (_pose(robot).x, _pose(robot).y))
+    assert report.narrow == ()
+    peeks = [s for s in report.reachable if s.peek]
+    assert len(peeks) == 1 and 4.3 <= peeks[0].x <= 5.1 and abs(peeks[0].y - 1.5) < 0.5
+    for name in ("frontier_travel", "nearest"):
+        ex = Explorer(make_strategy(name), np.random.default_rng(0))
+        step = ex.update(grid, _pose(robot), dist, 0.0)
+        assert not step.done and step.goal is not None, name
+        # In front of the door, close enough to see through it.
+        assert step.goal.x < 4.4 and math.hypot(step.goal.x - 4.4, step.goal.y - 1.5) <= PEEK + 0.45, (name, step.goal)
+    # Walls that make the gap narrow are still a narrow gap, however little of it is known.
+    g2 = _two_rooms(door=0.25, beyond_seen=0.0)
+    g2[40 - 2 : 40 + 3, 90:100] = FREE
+    report = frontier_report(_grid(g2), (_pose(robot).x, _pose(robot).y))
+    assert len(report.narrow) == 1 and not any(s.peek for s in report.reachable)
+
+
 def test_a_goal_reached_twice_without_clearing_its_frontier_is_given_up() -> None:
     g = _two_rooms(door=0.9, beyond_seen=0.6)
     grid = _grid(g)
