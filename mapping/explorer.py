@@ -26,8 +26,9 @@ those behind gaps narrower than the robot and those blacklisted): done, with
 the robot's coverage estimate and the frontiers given up and why. A site the
 costmap still reaches but the strategy declined (too small for its rule) is
 visited anyway: the robot stands against it, or for a door seen only at a
-grazing angle (a peek site) within ``PEEK`` of it, to look through. A site the costmap cuts off (inflation in a doorway, a
-transient obstacle, a localisation error) is a failure with a typed reason,
+grazing angle (a peek site) within ``PEEK`` of it, to look through. A site
+the costmap cuts off (inflation in a doorway, a transient obstacle, a
+localisation error) is a failure with a typed reason,
 ``frontier_cut_off`` (or ``frontier_not_cleared`` when the only sites left
 are next to the robot), for the mission's recoveries to act on; after
 ``CUT_OFF_TRIES`` such failures in a row those sites are given up as
