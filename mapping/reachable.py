@@ -129,16 +129,17 @@ def _disc(radius_cells: float) -> np.ndarray:
     return (xx * xx + yy * yy <= radius_cells * radius_cells + 1e-9).astype(np.uint8)
 
 
-def fits_mask(grid: np.ndarray, resolution: float, robot_radius: float = FOOTPRINT_RADIUS,
-              unknown_free: bool = False) -> np.ndarray:
-    """(H, W) bool: known-free cells (and unknown ones, with ``unknown_free``) whose centre is farther than
-    ``robot_radius`` [m] from every wall cell."""
+def clear_of_walls(grid: np.ndarray, resolution: float, robot_radius: float = FOOTPRINT_RADIUS) -> np.ndarray:
+    """(H, W) bool: cells whose centre is farther than ``robot_radius`` [m] from every wall cell (any state)."""
     occ = (grid >= OCCUPIED_AT).astype(np.uint8)
-    open_ = (grid == FREE) | ((grid == UNKNOWN) if unknown_free else False)
     if not occ.any():
-        return open_
-    d = distance_cells(1 - occ) * resolution
-    return open_ & (d > robot_radius)
+        return np.ones(grid.shape, bool)
+    return distance_cells(1 - occ) * resolution > robot_radius
+
+
+def fits_mask(grid: np.ndarray, resolution: float, robot_radius: float = FOOTPRINT_RADIUS) -> np.ndarray:
+    """(H, W) bool: known-free cells whose centre is farther than ``robot_radius`` [m] from every wall cell."""
+    return (grid == FREE) & clear_of_walls(grid, resolution, robot_radius)
 
 
 def robot_region(fits: np.ndarray, robot_cell: tuple[float, float], resolution: float) -> np.ndarray:
@@ -198,17 +199,18 @@ def frontier_report(grid: OccupancyGrid, robot_xy: tuple[float, float],
     g, res = grid.data, grid.resolution
     r = (robot_xy[1] - grid.origin[1]) / res - 0.5
     c = (robot_xy[0] - grid.origin[0]) / res - 0.5
-    fits = fits_mask(g, res, robot_radius)
-    region = robot_region(fits, (r, c), res)
+    clear = clear_of_walls(g, res, robot_radius)
+    region = robot_region((g == FREE) & clear, (r, c), res)
+    reach_disc = _disc(robot_radius / res + 1.0)
     unknown = _open_unknown(g, res)
     beside_unknown = cv2.dilate(unknown.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     reach_front = region & beside_unknown
-    near_region = cv2.dilate(region.astype(np.uint8), _disc(robot_radius / res + 1.0)).astype(bool)
+    near_region = cv2.dilate(region.astype(np.uint8), reach_disc).astype(bool)
     out_of_reach = (g == FREE) & beside_unknown & ~near_region
     # Narrow only if walls make it so: where the footprint would fit with the unknown taken as free, it is a door
     # half seen (a peek site), not a gap narrower than the robot.
-    hopeful = robot_region(fits_mask(g, res, robot_radius, unknown_free=True), (r, c), res) & (g == UNKNOWN)
-    near_hopeful = cv2.dilate(hopeful.astype(np.uint8), _disc(robot_radius / res + 1.0)).astype(bool)
+    hopeful = robot_region(((g == FREE) | (g == UNKNOWN)) & clear, (r, c), res) & (g == UNKNOWN)
+    near_hopeful = cv2.dilate(hopeful.astype(np.uint8), reach_disc).astype(bool)
     peek = out_of_reach & near_hopeful
     reachable = _sites(reach_front, grid) + _sites(peek, grid, peek=True)
     narrow = _sites(out_of_reach & ~near_hopeful, grid)
