@@ -111,6 +111,28 @@ def test_the_weighted_mean_follows_the_better_sighting_and_averages_headings_on_
     assert abs(abs(m.theta) - math.pi) < 0.06  # near ±π, not near 0
 
 
+class _LateBase:
+    """One axis of a base (heading turned at ω, or distance driven at v) that takes each command ``LATE`` s
+    after it is sent, integrated at ``DT``: the base :func:`_turn_with_dead_time` and
+    :func:`_drive_with_dead_time` servo on."""
+
+    LATE, TICK, DT = 0.25, 0.2, 0.005  # [s]
+
+    def __init__(self) -> None:
+        self.at = self.rate = self.t = 0.0  # position [rad or m], rate [rad/s or m/s], time [s]
+        self.due: list[tuple[float, float]] = []  # (when it takes hold [s], rate)
+
+    def send(self, rate: float) -> None:
+        self.due.append((self.t + self.LATE, rate))
+
+    def run(self, seconds: float) -> None:
+        for _ in range(round(seconds / self.DT)):
+            while self.due and self.due[0][0] <= self.t + 1e-9:
+                self.rate = self.due.pop(0)[1]
+            self.at += self.rate * self.DT
+            self.t += self.DT
+
+
 def _turn_with_dead_time(servo: TagServo, goal_yaw: float, check_still: bool) -> tuple[float, float]:
     """Align on the spot to ``goal_yaw`` [rad] on a base that answers late, ticked at 5 Hz.
 
@@ -119,30 +141,19 @@ def _turn_with_dead_time(servo: TagServo, goal_yaw: float, check_still: bool) ->
     reading (over the emulated serial port the gyro shows a command two 5 Hz ticks after it was sent).
     Returns (measured turn rate at success [rad/s], heading error once the base is at rest [rad]).
     """
-    late, tick, dt = 0.25, 0.2, 0.005
+    base = _LateBase()
     servo.start(0.0, Pose2())
     servo.see(Sighting(0.0, Pose2(0.0, 0.0, goal_yaw), np.diag([1e-6, 1e-6, 1e-6])))
-    yaw = omega = t = 0.0
-    due: list[tuple[float, float]] = []  # (when it takes hold [s], ω [rad/s])
-
-    def run(seconds: float) -> None:
-        nonlocal yaw, omega, t
-        for _ in range(round(seconds / dt)):
-            while due and due[0][0] <= t + 1e-9:
-                omega = due.pop(0)[1]
-            yaw += omega * dt
-            t += dt
-
     while servo.status not in (ServoStatus.SUCCEEDED, ServoStatus.FAILED):
-        assert t < 30.0, servo.message
-        cmd = servo.step(t, Pose2(0.0, 0.0, yaw), Twist2(0.0, omega) if check_still else None)
-        due.append((t + late, cmd.omega))
-        run(tick)
-    at_success = omega
-    due.append((t + late, 0.0))  # the next leaf's first command: stop
-    run(3 * late)
-    assert omega == 0.0
-    return at_success, math.remainder(goal_yaw - yaw, 2 * math.pi)
+        assert base.t < 30.0, servo.message
+        cmd = servo.step(base.t, Pose2(0.0, 0.0, base.at), Twist2(0.0, base.rate) if check_still else None)
+        base.send(cmd.omega)
+        base.run(base.TICK)
+    at_success = base.rate
+    base.send(0.0)  # the next leaf's first command: stop
+    base.run(3 * base.LATE)
+    assert base.rate == 0.0
+    return at_success, math.remainder(goal_yaw - base.at, 2 * math.pi)
 
 
 GOALS = (3.0, 17.0, 52.0, 86.0, -115.0)  # [°] headings to turn to
@@ -169,29 +180,18 @@ def _drive_with_dead_time(servo: TagServo, ahead: float) -> tuple[float, float]:
 
     Returns (time to SUCCEEDED [s], distance short of the goal once the base is at rest [m], negative past it).
     """
-    late, tick, dt = 0.25, 0.2, 0.005
+    base = _LateBase()
     servo.start(0.0, Pose2())
     servo.see(Sighting(0.0, Pose2(ahead, 0.0, 0.0), np.diag([1e-6, 1e-6, 1e-6])))
-    x = v = t = 0.0
-    due: list[tuple[float, float]] = []
-
-    def run(seconds: float) -> None:
-        nonlocal x, v, t
-        for _ in range(round(seconds / dt)):
-            while due and due[0][0] <= t + 1e-9:
-                v = due.pop(0)[1]
-            x += v * dt
-            t += dt
-
     while servo.status not in (ServoStatus.SUCCEEDED, ServoStatus.FAILED):
-        assert t < 30.0, servo.message
-        cmd = servo.step(t, Pose2(x, 0.0, 0.0), Twist2(v, 0.0))
-        due.append((t + late, cmd.v))
-        run(tick)
-    took = t
-    due.append((t + late, 0.0))
-    run(3 * late)
-    return took, ahead - x
+        assert base.t < 30.0, servo.message
+        cmd = servo.step(base.t, Pose2(base.at, 0.0, 0.0), Twist2(base.rate, 0.0))
+        base.send(cmd.v)
+        base.run(base.TICK)
+    took = base.t
+    base.send(0.0)
+    base.run(3 * base.LATE)
+    return took, ahead - base.at
 
 
 @pytest.mark.parametrize("ahead", [0.05, 0.10, 0.30])
