@@ -123,13 +123,22 @@ def _pool(fn: Callable[..., Any], jobs: Sequence[tuple[Any, ...]], workers: int,
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
         futures = {pool.submit(_call, fn, job): i for i, job in enumerate(jobs)}
-        for fut in as_completed(futures):
-            i = futures[fut]
-            try:
-                out = fut.result()
-            except Exception as err:  # the worker process itself died (killed, out of memory)
-                out = Outcome(jobs[i], None, f"{type(err).__name__}: {err}")
-            finished(i, out)
+        try:
+            for fut in as_completed(futures):
+                i = futures[fut]
+                try:
+                    out = fut.result()
+                except Exception as err:  # the worker process itself died (killed, out of memory)
+                    out = Outcome(jobs[i], None, f"{type(err).__name__}: {err}")
+                finished(i, out)
+        except BaseException:
+            # Stopped (Ctrl-C, SIGTERM: KeyboardInterrupt): leaving the block would wait for every queued run.
+            # A signal sent to this process alone never reaches the workers, so stop them here; a run cut
+            # short is no result anyway. (Python 3.14's terminate_workers does this; before it, _processes.)
+            pool.shutdown(wait=False, cancel_futures=True)
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.terminate()
+            raise
 
 
 def _ray(fn: Callable[..., Any], jobs: Sequence[tuple[Any, ...]], engine: Engine,

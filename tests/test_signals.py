@@ -125,3 +125,31 @@ def test_a_terminal_that_hangs_up_loses_nothing(tmp_path: Path) -> None:
     run = RunLog(record, salvage=True)
     assert run.damage is None and run.commands()[-1][1].v == 0.0
     assert "Traceback" not in err.read_text()
+
+
+def _start_then_wait(folder: str, i: int) -> int:
+    """A sweep's run: marks that it started; all but the first then wait up to 120 s for a file nobody writes."""
+    Path(folder, f"started_{i}").touch()
+    if i > 0:
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and not Path(folder, "never").exists():
+            time.sleep(0.05)
+        Path(folder, f"finished_{i}").touch()
+    return i
+
+
+def test_a_stopped_sweep_stops_its_workers_and_starts_no_more_runs(tmp_path: Path) -> None:
+    """``bench explore --workers 2`` sent SIGTERM went on with every queued run (minutes each) before it exited: the
+    process pool waited for them, and a signal sent to the bench alone never reaches its workers. Stopped (the CLI
+    makes Ctrl-C and SIGTERM a KeyboardInterrupt) as its first run ends, a sweep ends its runs there."""
+    from homing.benchmarks.engine import Engine, run_jobs
+
+    jobs = [(str(tmp_path), i) for i in range(8)]
+
+    def stop(_outcome: object) -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_jobs(_start_then_wait, jobs, Engine("pool", workers=2), stop)
+    assert not list(tmp_path.glob("finished_*")), "a run went on after the sweep was stopped"
+    assert len(list(tmp_path.glob("started_*"))) < len(jobs)
