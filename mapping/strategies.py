@@ -38,10 +38,7 @@ choose again live in :mod:`homing.mapping.explorer`, shared by all.
   leaving it. Once no frontier of explore_lite's minimum size is left, ones
   down to ``CRUMB_SIZE`` are toured, so the run does not end short of the
   whole map (explore_lite's "ends early"). (Touring them from the start was
-  tried: slower in halls, where the long frontiers reveal them anyway.) A
-  frontier is measured along the free cells up to ``LOOK_IN`` past where the
-  planner reaches, so a door passed at a grazing angle (the planner reaches
-  only its middle) is a goal then, not a crumb left for the end.
+  tried: slower in halls, where the long frontiers reveal them anyway.)
 - ``gain_rate`` — information gain per travel time (the default before
   ``frontier_travel``: better in worlds of many small rooms, slower in
   halls, where it leaves a hall half-seen for a bigger gain elsewhere and
@@ -89,8 +86,6 @@ GAIN_SCALE = 1.0  # explore_lite launch default
 MIN_FRONTIER_SIZE = 0.75  # [m] explore_lite launch default
 CENTROID_TOLERANCE = 1.0  # [m] how far a centroid goal may be moved to a reachable cell
 SAME_FRONTIER = 1.5  # [m] frontier_travel: a frontier passing this near the current goal is the one driven to
-LOOK_IN = 0.75  # [m] frontier_travel: free cells this far (over free cells) past where the planner reaches still
-# border frontiers (a half-seen doorway; the explorer's PEEK)
 CRUMB_SIZE = 0.3  # [m] frontier_travel visits frontiers this small once none of MIN_FRONTIER_SIZE is left
 GAIN_RADIUS = 3.0  # [m] unknown area counted around a goal: half the lidar's 6 m range
 GAIN_POOL = 4  # cells pooled per side when counting unknown area (speed)
@@ -110,9 +105,6 @@ SETBACK = 1.5  # [m] gain_rate also tries viewpoints in known free space this fa
 SETBACK_STRIDE = 0.3  # [m] lattice spacing of those viewpoints
 VIEW_CANDIDATES = 320  # gain_rate evaluates at most this many goals (each ray cast VIEW_RAYS × VIEW_RADIUS; ~50 ms)
 VIEW_RAYS = 32  # rays per goal: 1 m apart at VIEW_RADIUS, enough for room-sized unknown
-
-
-_CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
 
 
 @dataclass
@@ -248,8 +240,22 @@ class ExploreLite:
         """Unknown cells 4-adjacent to a free cell the robot can reach, grouped 8-connected, ≥ ``min_size`` [m]
         (default ``min_frontier_size``)."""
         min_size = self.min_frontier_size if min_size is None else min_size
-        reach_free = (ctx.grid == FREE) & np.isfinite(ctx.distance)
-        return _segments(_bordering(ctx.grid, reach_free), min_size, ctx.resolution)
+        g = ctx.grid
+        reach_free = ((g == FREE) & np.isfinite(ctx.distance)).astype(np.uint8)
+        cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+        near_free = cv2.dilate(reach_free, cross).astype(bool)
+        cand = (g == UNKNOWN) & near_free
+        n, labels = cv2.connectedComponents(cand.astype(np.uint8), connectivity=8)
+        rows, cols = np.nonzero(labels)
+        lab = labels[rows, cols]
+        order = np.argsort(lab, kind="stable")
+        rows, cols, lab = rows[order], cols[order], lab[order]
+        splits = np.flatnonzero(np.diff(lab)) + 1
+        out: list[FrontierSegment] = []
+        for r, c in zip(np.split(rows, splits), np.split(cols, splits), strict=False):
+            if len(r) and len(r) * ctx.resolution >= min_size:
+                out.append(FrontierSegment(np.column_stack([r, c]).astype(np.int64), len(out)))
+        return out
 
     def costs(self, ctx: GoalContext, segs: list[FrontierSegment]) -> list[float]:
         """explore_lite's frontierCost for each segment (lower is better)."""
@@ -277,28 +283,6 @@ class ExploreLite:
             if cell is not None:
                 return GoalChoice(cell, segs[int(i)], segs, -float(costs[int(i)]))
         return None
-
-
-def _bordering(grid: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """(H, W) bool: the unknown cells 4-adjacent to a ``free`` cell."""
-    return (grid == UNKNOWN) & cv2.dilate(free.astype(np.uint8), _CROSS).astype(bool)
-
-
-def _segments(cand: np.ndarray, min_size: float, resolution: float,
-              core: np.ndarray | None = None) -> list[FrontierSegment]:
-    """The 8-connected groups of ``cand`` (H, W) cells at least ``min_size`` [m] long (cells × resolution), in
-    label order; with ``core``, only the groups holding one of its cells."""
-    n, labels = cv2.connectedComponents(cand.astype(np.uint8), connectivity=8)
-    rows, cols = np.nonzero(labels)
-    lab = labels[rows, cols]
-    order = np.argsort(lab, kind="stable")
-    rows, cols, lab = rows[order], cols[order], lab[order]
-    splits = np.flatnonzero(np.diff(lab)) + 1
-    out: list[FrontierSegment] = []
-    for r, c in zip(np.split(rows, splits), np.split(cols, splits), strict=False):
-        if len(r) and len(r) * resolution >= min_size and (core is None or core[r, c].any()):
-            out.append(FrontierSegment(np.column_stack([r, c]).astype(np.int64), len(out)))
-    return out
 
 
 def _goal_cells(ctx: GoalContext) -> np.ndarray:
@@ -330,22 +314,6 @@ class FrontierTravel(ExploreLite):
         super().__init__(min_frontier_size=min_frontier_size)
         self.crumb_size = crumb_size
         self.tour: list[tuple[int, int]] = []  # the goals in the order of the last tour planned (for pictures)
-
-    def frontiers(self, ctx: GoalContext, min_size: float | None = None) -> list[FrontierSegment]:
-        """explore_lite's frontiers, each measured with the unknown cells it continues into along free cells up
-        to ``LOOK_IN`` past where the planner reaches: a door seen at a grazing angle borders the planner's reach
-        only across its middle (0.35 m in office:1, less than explore_lite's minimum size) and the free sliver
-        along its jambs, closer to the walls than the footprint fits; measured with the sliver it is the door
-        it is. A stretch that borders only such cells (a wall the lidar grazed, not yet mapped) is no frontier."""
-        min_size = self.min_frontier_size if min_size is None else min_size
-        free = ctx.grid == FREE
-        reach_free = free & np.isfinite(ctx.distance)
-        near = reach_free.astype(np.uint8)
-        keep = free.astype(np.uint8)
-        for _ in range(int(round(LOOK_IN / ctx.resolution))):
-            near = cv2.dilate(near, _CROSS) & keep
-        core = _bordering(ctx.grid, reach_free)
-        return _segments(_bordering(ctx.grid, near.astype(bool)), min_size, ctx.resolution, core)
 
     def goals(self, ctx: GoalContext) -> list[tuple[FrontierSegment, tuple[int, int]]]:
         """Each frontier of explore_lite's minimum size with its goal; when none is left, those down to

@@ -126,44 +126,6 @@ def test_a_door_seen_only_at_a_grazing_angle_is_looked_at_not_given_up_as_narrow
     assert len(report.narrow) == 1 and not any(s.peek for s in report.reachable)
 
 
-def test_frontier_travel_looks_through_a_half_seen_door_on_its_way_not_at_the_end() -> None:
-    """A door in a wall seen at a grazing angle: the costmap has the wall from the scan's marks, the map not yet
-    (the wall's cells near the door and the doorway are unknown), so the planner reaches the unknown only across
-    the door's middle, 0.5 m, less than explore_lite's 0.75 m minimum frontier. Measured along the free cells
-    up to LOOK_IN past the planner's reach it is the frontier it is, and frontier_travel, standing 1 m from
-    the door with another frontier 3 m away, looks through the door now rather than crossing the building and
-    coming back for it last (office:1 seed 1 passed such a door at 253 s and came back for its room at 550 s)."""
-    from homing.mapping.reachable import PEEK
-    from homing.mapping.strategies import LOOK_IN, MIN_FRONTIER_SIZE
-
-    walls = _two_rooms(door=0.9, beyond_seen=0.0)
-    walls[30:50, 10] = FREE  # a 1 m opening in room A's far wall, unknown beyond: another frontier
-    g = walls.copy()
-    g[28:52, 88:90] = UNKNOWN  # the map has neither the doorway nor the wall 0.1 m either side of it yet
-    robot = (40, 70)  # 1 m from the door, 3 m from the opening
-    dist = travel_distance(walls, RES, robot)  # the planner's reach: the costmap has the wall
-    grid = _grid(g)
-    ft = make_strategy("frontier_travel")
-    assert LOOK_IN >= PEEK
-    ctx_cells = ft.frontiers(Explorer(ft)._context(grid, _pose(robot), dist), 0.0)
-    door = [seg for seg in ctx_cells if seg.cells[:, 1].min() >= 80]
-    assert len(door) == 1 and door[0].size * RES >= MIN_FRONTIER_SIZE
-    ex = Explorer(ft, np.random.default_rng(0))
-    step = ex.update(grid, _pose(robot), dist, 0.0)
-    assert step.goal is not None and not step.done
-    assert math.hypot(step.goal.x - 4.4, step.goal.y - 2.0) <= PEEK + 0.45, step.goal
-    assert len(ft.tour) == 2  # the door and the opening, both goals
-    # explore_lite's own frontiers, bordering only where the planner reaches: the door's is too small.
-    lite = make_strategy("explore_lite")
-    assert all(seg.cells[:, 1].min() < 80 for seg in lite.frontiers(Explorer(lite)._context(grid, _pose(robot), dist)))
-    # From beside the opening, the opening comes first and the door stays in the tour.
-    far = (40, 26)
-    ex = Explorer(make_strategy("frontier_travel"), np.random.default_rng(0))
-    step = ex.update(grid, _pose(far), travel_distance(walls, RES, far), 0.0)
-    assert step.goal is not None and step.goal.x < 1.5
-    assert len(ex.strategy.tour) == 2
-
-
 def test_a_goal_reached_twice_without_clearing_its_frontier_is_given_up() -> None:
     g = _two_rooms(door=0.9, beyond_seen=0.6)
     grid = _grid(g)
