@@ -128,8 +128,9 @@ def test_a_terminal_that_hangs_up_loses_nothing(tmp_path: Path) -> None:
 
 
 def _start_then_wait(folder: str, i: int) -> int:
-    """A sweep's run: marks that it started; all but the first then wait up to 120 s for a file nobody writes."""
-    Path(folder, f"started_{i}").touch()
+    """A sweep's run: marks that it started (with its process id); all but the first then wait up to 120 s for a
+    file nobody writes."""
+    Path(folder, f"started_{i}").write_text(str(os.getpid()))
     if i > 0:
         deadline = time.monotonic() + 120.0
         while time.monotonic() < deadline and not Path(folder, "never").exists():
@@ -151,5 +152,9 @@ def test_a_stopped_sweep_stops_its_workers_and_starts_no_more_runs(tmp_path: Pat
 
     with pytest.raises(KeyboardInterrupt):
         run_jobs(_start_then_wait, jobs, Engine("pool", workers=2), stop)
+    started = list(tmp_path.glob("started_*"))
+    assert len(started) < len(jobs)
+    for f in started:  # every worker that ran one is gone, not finishing its run in the background
+        with pytest.raises(ProcessLookupError):
+            os.kill(int(f.read_text()), 0)
     assert not list(tmp_path.glob("finished_*")), "a run went on after the sweep was stopped"
-    assert len(list(tmp_path.glob("started_*"))) < len(jobs)
