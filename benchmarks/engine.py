@@ -135,11 +135,11 @@ def _pool(fn: Callable[..., Any], jobs: Sequence[tuple[Any, ...]], workers: int,
             # Stopped (Ctrl-C, SIGTERM: KeyboardInterrupt): leaving the block would wait for every queued run.
             # A signal sent to this process alone never reaches the workers, so stop them here; a run cut
             # short is no result anyway. (Python 3.14's terminate_workers does this; before it, _processes.)
-            workers = list((getattr(pool, "_processes", None) or {}).values())  # shutdown forgets them
+            procs = list((getattr(pool, "_processes", None) or {}).values())  # shutdown forgets them
             pool.shutdown(wait=False, cancel_futures=True)
-            for proc in workers:
+            for proc in procs:
                 proc.terminate()
-            for proc in workers:
+            for proc in procs:
                 proc.join()
             raise
 
