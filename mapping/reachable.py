@@ -137,11 +137,6 @@ def clear_of_walls(grid: np.ndarray, resolution: float, robot_radius: float = FO
     return distance_cells(1 - occ) * resolution > robot_radius
 
 
-def fits_mask(grid: np.ndarray, resolution: float, robot_radius: float = FOOTPRINT_RADIUS) -> np.ndarray:
-    """(H, W) bool: known-free cells whose centre is farther than ``robot_radius`` [m] from every wall cell."""
-    return (grid == FREE) & clear_of_walls(grid, resolution, robot_radius)
-
-
 def robot_region(fits: np.ndarray, robot_cell: tuple[float, float], resolution: float) -> np.ndarray:
     """(H, W) bool: the components of ``fits`` within SEED_RADIUS of ``robot_cell`` (row, col) (fractional), or the
     one nearest to it; all False when nothing fits anywhere."""
