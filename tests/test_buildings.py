@@ -106,3 +106,21 @@ def test_generated_worlds_load_by_name_and_bad_names_say_what_exists() -> None:
         load_world("offfice:1")
     code, _, err = homing_cli("bench", "explore", "--worlds", "office:x", "--seeds", "1")
     assert code == 2 and "office:SEED" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("seed", range(1, 8))
+def test_nothing_stands_in_front_of_a_door(seed: int) -> None:
+    # A door is only as wide as the floor before it: a cabinet against the wall beside a door cut from a room
+    # off this one (listed in that room's doors) once left office:3 a 0.5 m way through a 0.9 m door.
+    b = office_builder(seed)
+    depth = int(round(0.6 / RES))  # [cells] how far either side of the wall the floor is kept clear
+    doors = [d for room in b.rooms for d in room.doors]
+    assert len(doors) >= len(b.rooms)
+    for r0, r1, c0, c1 in doors:
+        across_rows = r1 - r0 < c1 - c0  # a door in a wall along the columns is passed along the rows
+        if across_rows:
+            r0, r1 = r0 - depth, r1 + depth
+        else:
+            c0, c1 = c0 - depth, c1 + depth
+        floor = b.grid[b.m + r0 : b.m + r1, b.m + c0 : b.m + c1]
+        assert (floor == FREE).all(), f"office:{seed}: {(floor != FREE).sum()} cells block door {(r0, r1, c0, c1)}"
