@@ -29,7 +29,9 @@ choose again live in :mod:`homing.mapping.explorer`, shared by all.
   by path distance, a door passed costing a toll
   (:mod:`homing.mapping.frontier_tour`), re-planned every 3 s as
   explore_lite replans, keeping its current goal unless another order is
-  clearly shorter (hysteresis); the way to the first goal counts its
+  clearly shorter (hysteresis), and leaving a goal at once when no
+  frontier is left near it (lookahead: the lidar saw what the robot was
+  going to look at); the way to the first goal counts its
   frontier's length less, so in a hall the long frontier goes first. A
   one-step rule — explore_lite's cost, whose distance term is 0.15 per metre
   at 5 cm cells and hardly counts, or the nearest frontier — sends the robot
@@ -309,6 +311,7 @@ class FrontierTravel(ExploreLite):
 
     name = "frontier_travel"
     ends_without_goal = False  # homing's rule: the map decides when it is done (homing.mapping.explorer)
+    drop_explored = True  # a goal whose frontier the lidar has seen is left at once, not at the next replan
 
     def __init__(self, min_frontier_size: float = MIN_FRONTIER_SIZE, crumb_size: float = CRUMB_SIZE) -> None:
         super().__init__(min_frontier_size=min_frontier_size)
@@ -351,6 +354,20 @@ class FrontierTravel(ExploreLite):
         self.tour = [goals[i][1] for i in order]
         seg, cell = goals[order[0]]
         return GoalChoice(cell, seg, [s for s, _ in goals], -float(start[order[0]]))
+
+
+    def goal_spent(self, grid: np.ndarray, resolution: float, cell: tuple[int, int]) -> bool:
+        """True when no frontier cell (unknown, 4-adjacent to free) is left within ``SAME_FRONTIER`` of the goal
+        ``cell``: the lidar has seen what the robot was going to look at, so the next goal is chosen now rather
+        than at the next replan (the robot would drive on towards a spent goal for up to ``replan_period``)."""
+        k = int(math.ceil(SAME_FRONTIER / resolution))
+        r, c = cell
+        r0, c0 = max(r - k, 0), max(c - k, 0)
+        patch = grid[r0 : r + k + 1, c0 : c + k + 1]
+        cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+        front = (patch == UNKNOWN) & cv2.dilate((patch == FREE).astype(np.uint8), cross).astype(bool)
+        rows, cols = np.nonzero(front)
+        return not bool(((rows + r0 - r) ** 2 + (cols + c0 - c) ** 2 <= k * k).any())
 
 
 def unknown_gain(grid: np.ndarray, resolution: float, radius: float = GAIN_RADIUS) -> np.ndarray:

@@ -179,3 +179,28 @@ def test_frontier_travel_visits_frontiers_smaller_than_explore_lites_minimum_onc
     assert choice is not None
     assert 16 <= choice.cell[0] < 34 and choice.cell[1] <= 14  # at the gap
 
+
+
+def test_frontier_travel_leaves_a_goal_whose_frontier_was_seen_before_its_next_replan():
+    """The pocket's goal is spent once the pocket's unknown strip is seen (walled off): the explorer chooses the
+    east end at its next update, 1 s later, not at frontier_travel's next replan (3 s)."""
+    g, robot = _corridor_world()
+    ft = make_strategy("frontier_travel")
+    ex = Explorer(ft)
+    grid = OccupancyGrid.from_map_data(MapData(g, RES, (0.0, 0.0, 0.0)))
+    dist = travel_distance(g, RES, robot)
+    pose = Pose2((robot[1] + 0.5) * RES, (robot[0] + 0.5) * RES, 0.0)
+    first = ex.update(grid, pose, dist, 0.0)
+    assert first.choice is not None and first.choice.cell[1] < 60  # the pocket first (the test above)
+    assert not ft.goal_spent(g, RES, first.choice.cell)  # the strip is 1 m beyond the pocket's goal
+    seen = g.copy()
+    seen[21:25, 30:60] = OCCUPIED  # the lidar saw the strip: a wall
+    assert ft.goal_spent(seen, RES, first.choice.cell)
+    grid = OccupancyGrid.from_map_data(MapData(seen, RES, (0.0, 0.0, 0.0)))
+    nxt = ex.update(grid, pose, dist, 1.0)
+    assert nxt.changed and nxt.choice is not None and nxt.choice.cell[1] > 140  # the east end, now
+    # A frontier cell 1.5 m off the goal keeps it (the frontier is the one driven to); one farther does not.
+    r, c = first.choice.cell
+    near, far = seen.copy(), seen.copy()
+    near[r + 29, c] = far[r + 31, c] = UNKNOWN  # in the corridor, FREE all round: 1.45 / 1.55 m off
+    assert not ft.goal_spent(near, RES, (r, c)) and ft.goal_spent(far, RES, (r, c))
