@@ -355,7 +355,6 @@ class FrontierTravel(ExploreLite):
         seg, cell = goals[order[0]]
         return GoalChoice(cell, seg, [s for s, _ in goals], -float(start[order[0]]))
 
-
     def goal_spent(self, grid: np.ndarray, resolution: float, cell: tuple[int, int]) -> bool:
         """True when no frontier cell (unknown, 4-adjacent to free) is left within ``SAME_FRONTIER`` of the goal
         ``cell``: the lidar has seen what the robot was going to look at, so the next goal is chosen now rather

@@ -180,7 +180,6 @@ def test_frontier_travel_visits_frontiers_smaller_than_explore_lites_minimum_onc
     assert 16 <= choice.cell[0] < 34 and choice.cell[1] <= 14  # at the gap
 
 
-
 def test_frontier_travel_leaves_a_goal_whose_frontier_was_seen_before_its_next_replan():
     """The pocket's goal is spent once the pocket's unknown strip is seen (walled off): the explorer chooses the
     east end at its next update, 1 s later, not at frontier_travel's next replan (3 s)."""
@@ -192,7 +191,7 @@ def test_frontier_travel_leaves_a_goal_whose_frontier_was_seen_before_its_next_r
     pose = Pose2((robot[1] + 0.5) * RES, (robot[0] + 0.5) * RES, 0.0)
     first = ex.update(grid, pose, dist, 0.0)
     assert first.choice is not None and first.choice.cell[1] < 60  # the pocket first (the test above)
-    assert not ft.goal_spent(g, RES, first.choice.cell)  # the strip is 1 m beyond the pocket's goal
+    assert not ft.goal_spent(g, RES, first.choice.cell)  # the pocket's unknown strip borders its goal
     seen = g.copy()
     seen[21:25, 30:60] = OCCUPIED  # the lidar saw the strip: a wall
     assert ft.goal_spent(seen, RES, first.choice.cell)
