@@ -242,11 +242,7 @@ class ExploreLite:
         """Unknown cells 4-adjacent to a free cell the robot can reach, grouped 8-connected, ≥ ``min_size`` [m]
         (default ``min_frontier_size``)."""
         min_size = self.min_frontier_size if min_size is None else min_size
-        g = ctx.grid
-        reach_free = ((g == FREE) & np.isfinite(ctx.distance)).astype(np.uint8)
-        cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
-        near_free = cv2.dilate(reach_free, cross).astype(bool)
-        cand = (g == UNKNOWN) & near_free
+        cand = _bordering(ctx.grid, (ctx.grid == FREE) & np.isfinite(ctx.distance))
         n, labels = cv2.connectedComponents(cand.astype(np.uint8), connectivity=8)
         rows, cols = np.nonzero(labels)
         lab = labels[rows, cols]
@@ -285,6 +281,12 @@ class ExploreLite:
             if cell is not None:
                 return GoalChoice(cell, segs[int(i)], segs, -float(costs[int(i)]))
         return None
+
+
+def _bordering(grid: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """(H, W) bool: explore_lite's frontier cells, the unknown cells of ``grid`` 4-adjacent to a ``free`` cell."""
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+    return (grid == UNKNOWN) & cv2.dilate(free.astype(np.uint8), cross).astype(bool)
 
 
 def _goal_cells(ctx: GoalContext) -> np.ndarray:
@@ -363,9 +365,7 @@ class FrontierTravel(ExploreLite):
         r, c = cell
         r0, c0 = max(r - k, 0), max(c - k, 0)
         patch = grid[r0 : r + k + 1, c0 : c + k + 1]
-        cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
-        front = (patch == UNKNOWN) & cv2.dilate((patch == FREE).astype(np.uint8), cross).astype(bool)
-        rows, cols = np.nonzero(front)
+        rows, cols = np.nonzero(_bordering(patch, patch == FREE))
         return not bool(((rows + r0 - r) ** 2 + (cols + c0 - c) ** 2 <= k * k).any())
 
 
