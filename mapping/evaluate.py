@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -26,16 +27,24 @@ def truth_under_grid(grid: OccupancyGrid, truth: MapData, world_from_map: Pose2 
     """(H, W) int8: the true map's value under each grid cell's centre (UNKNOWN outside the truth)."""
     world_from_map = world_from_map or Pose2()
     h, w = grid.shape
-    rows, cols = np.mgrid[0:h, 0:w]
-    x, y = grid.cell_to_world(rows.ravel(), cols.ravel())
-    pts = world_from_map.transform_points(np.column_stack([x, y]))
-    tc = np.floor((pts[:, 0] - truth.origin[0]) / truth.resolution).astype(np.int64)
-    tr = np.floor((pts[:, 1] - truth.origin[1]) / truth.resolution).astype(np.int64)
-    th, tw = truth.grid.shape
-    ok = (tr >= 0) & (tr < th) & (tc >= 0) & (tc < tw)
+    key = (h, w, grid.origin, grid.resolution, world_from_map)
+    if _LOOKUP.get("key") != key or _LOOKUP.get("truth") is not truth.grid:
+        # Which truth cell lies under each grid cell changes only when the grid grows: a run samples coverage
+        # every few seconds on a grid of a million cells, so the lookup is kept (it holds the truth it indexes).
+        rows, cols = np.mgrid[0:h, 0:w]
+        x, y = grid.cell_to_world(rows.ravel(), cols.ravel())
+        pts = world_from_map.transform_points(np.column_stack([x, y]))
+        tc = np.floor((pts[:, 0] - truth.origin[0]) / truth.resolution).astype(np.int64)
+        tr = np.floor((pts[:, 1] - truth.origin[1]) / truth.resolution).astype(np.int64)
+        th, tw = truth.grid.shape
+        ok = (tr >= 0) & (tr < th) & (tc >= 0) & (tc < tw)
+        _LOOKUP.update(key=key, truth=truth.grid, ok=ok, flat=tr[ok] * tw + tc[ok])
     out = np.full(h * w, UNKNOWN, dtype=np.int8)
-    out[ok] = truth.grid[tr[ok], tc[ok]]
+    out[_LOOKUP["ok"]] = truth.grid.ravel()[_LOOKUP["flat"]]
     return out.reshape(h, w)
+
+
+_LOOKUP: dict[str, Any] = {}  # truth_under_grid's last lookup: its key, the truth grid, the in-truth mask, flat indices
 
 
 def cell_agreement(grid: OccupancyGrid, truth: MapData, world_from_map: Pose2 | None = None, tolerance: int = 1) -> float:

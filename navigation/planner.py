@@ -331,6 +331,18 @@ def _march(weights: np.ndarray, source: tuple[int, int], speed: bool,
            exact: tuple[float, float] | None = None) -> np.ndarray:
     """(H, W) fast-marching arrival from ``source`` [cells] (or the sub-cell point ``exact``); ``inf`` where unreachable."""
     blocked = ~np.isfinite(weights)
+    rows, cols = np.flatnonzero(~blocked.all(axis=1)), np.flatnonzero(~blocked.all(axis=0))
+    if len(rows):
+        # March only over the box of open cells (and the source), a blocked cell round it: the unknown margin
+        # of a growing map is often most of the grid, and the arrival times inside are the same to the bit.
+        r0, c0 = max(min(int(rows[0]), source[0]) - 1, 0), max(min(int(cols[0]), source[1]) - 1, 0)
+        r1, c1 = max(int(rows[-1]), source[0]) + 2, max(int(cols[-1]), source[1]) + 2
+        if (r1 - r0) * (c1 - c0) < blocked.size:
+            er, ec = exact if exact is not None else source
+            out = np.full(weights.shape, np.inf)
+            out[r0:r1, c0:c1] = _march(weights[r0:r1, c0:c1], (source[0] - r0, source[1] - c0), speed,
+                                       (er - r0, ec - c0))
+            return out
     rr, cc = np.indices(weights.shape)
     # A zero contour around the source point, wide enough to enclose a cell centre; added back below.
     er, ec = exact if exact is not None else source

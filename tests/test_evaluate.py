@@ -57,6 +57,25 @@ def test_coverage_counts_observed_cells_and_free_coverage_only_free_ones() -> No
     assert cov2.agreement < 1.0
 
 
+def test_coverage_follows_the_grid_as_it_moves_and_grows() -> None:
+    # Which truth cell lies under each grid cell is kept between calls (a run samples coverage every few
+    # seconds): two grids of the same shape at different origins, then a grown one, must each read their own.
+    truth = two_rooms()
+    reach = reachable_free(truth, (1.0, 1.0))
+    halves = []
+    for c0 in (20, 0):
+        g = OccupancyGrid(0.1, (c0 * 0.1, 0.0), (20, 20), grow=False)
+        g.data[:] = truth.grid[:, c0 : c0 + 20]
+        halves.append(coverage(g, truth, (1.0, 1.0)))
+    assert [h.coverage for h in halves] == [pytest.approx(reach[:, 20:].sum() / reach.sum()),
+                                            pytest.approx(reach[:, :20].sum() / reach.sum())]
+    assert [h.agreement for h in halves] == [1.0, 1.0]
+    for origin, at in (((0.0, 0.0), (0, 0)), ((-0.5, -0.3), (3, 5))):  # grown up and right; then down and left
+        grown = OccupancyGrid(0.1, origin, (26, 45), grow=False)
+        grown.data[at[0] : at[0] + 20, at[1] : at[1] + 20] = truth.grid[:, :20]
+        assert coverage(grown, truth, (1.0, 1.0)) == halves[1]
+
+
 def test_coverage_uses_the_map_frame_pose() -> None:
     """A grid built in a map frame rotated and moved from the world's reads through ``world_from_map``."""
     truth = two_rooms()

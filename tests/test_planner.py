@@ -105,6 +105,27 @@ def test_distance_map_is_euclidean_in_the_open_and_inf_where_unreachable() -> No
     assert np.all(np.isinf(d[cm.cost >= 253]))  # where the footprint does not fit
 
 
+def test_distance_map_does_not_change_with_an_unknown_margin_round_the_map() -> None:
+    # A growing map is mostly unknown margin, so fast marching runs only over the box of open cells. A free
+    # cell alone in two of the margin's corners (reached by nothing) makes that box the whole grid: the
+    # distances must be the same, to the bit, either way.
+    g = rasterise(MAZE, (10.0, 10.0), RES)
+    m = 37  # cells of unknown on every side (not a multiple of anything)
+    padded = np.pad(g, ((m, m + 5), (m + 3, m)), constant_values=-1)
+    fields = []
+    for lone_cells in (False, True):
+        cm = Costmap()
+        data = padded.copy()
+        if lone_cells:
+            data[0, 0] = data[-1, -1] = 0
+        cm.set_static(data, RES, (-(m + 3) * RES, -m * RES))
+        fields.append(distance_map(cm, Pose2(*MAZE_START)))
+    boxed, whole = fields
+    whole[0, 0] = whole[-1, -1] = np.inf
+    assert np.isfinite(boxed).sum() > 1000 and np.array_equal(boxed, whole)
+    assert not np.isfinite(boxed[:m]).any() and not np.isfinite(boxed[:, -m:]).any()  # the margin is never reached
+
+
 @pytest.mark.parametrize("ring", [0.16, 0.20, 0.25])
 def test_a_start_walled_in_tighter_than_the_footprint_reaches_nothing_and_plans_fail_typed(ring: float) -> None:
     # bench persist, seed 1, day 5: home (the staging pose) fell in such a pocket of the costmap:
