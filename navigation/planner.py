@@ -333,8 +333,8 @@ def _march(weights: np.ndarray, source: tuple[int, int], speed: bool,
     blocked = ~np.isfinite(weights)
     rows, cols = np.flatnonzero(~blocked.all(axis=1)), np.flatnonzero(~blocked.all(axis=0))
     if len(rows):
-        # March only over the box of open cells (and the source), a blocked cell round it: the unknown margin
-        # of a growing map is often most of the grid, and the arrival times inside are the same to the bit.
+        # March only over the box of open cells (and the source), a blocked cell round it: the arrays built
+        # round the march then cover only that box, and the arrival times inside are the same to the bit.
         r0, c0 = max(min(int(rows[0]), source[0]) - 1, 0), max(min(int(cols[0]), source[1]) - 1, 0)
         r1, c1 = max(int(rows[-1]), source[0]) + 2, max(int(cols[-1]), source[1]) + 2
         if (r1 - r0) * (c1 - c0) < blocked.size:
