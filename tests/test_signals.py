@@ -130,7 +130,9 @@ def test_a_terminal_that_hangs_up_loses_nothing(tmp_path: Path) -> None:
 def _start_then_wait(folder: str, i: int) -> int:
     """A sweep's run: marks that it started (with its process id); all but the first then wait up to 120 s for a
     file nobody writes."""
-    Path(folder, f"started_{i}").write_text(str(os.getpid()))
+    # Written whole or not at all: a worker stopped between creating the file and writing its id left it empty.
+    Path(folder, f"writing_{i}").write_text(str(os.getpid()))
+    os.replace(Path(folder, f"writing_{i}"), Path(folder, f"started_{i}"))
     if i > 0:
         deadline = time.monotonic() + 120.0
         while time.monotonic() < deadline and not Path(folder, "never").exists():
