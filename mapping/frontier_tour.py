@@ -280,16 +280,20 @@ def keep_first(start: np.ndarray, between: np.ndarray, best: list[int], current:
 
 
 def plan(robot: tuple[int, int], grid: np.ndarray, resolution: float, passable: np.ndarray, goals: np.ndarray,
-         start: np.ndarray, current: int | None = None, lengths: np.ndarray | None = None) -> list[int]:
+         start: np.ndarray, current: int | None = None, lengths: np.ndarray | None = None,
+         doors: np.ndarray | None = None) -> list[int]:
     """The order to visit ``goals`` (K, 2) (row, col) in, from the ``robot`` cell: ``grid`` (H, W) the map_server
     grid (for its doors), ``passable`` (H, W) bool the cells the planner reaches, ``start`` (K,) [m] the planner's
     travel distance to each goal (finite), ``current`` the goal now driven to (index or None), ``lengths`` (K,)
-    [m] the goals' frontier lengths (the first goal's way counts ``FIRST_GAIN`` × its length less). At most
+    [m] the goals' frontier lengths (the first goal's way counts ``FIRST_GAIN`` × its length less), ``doors``
+    (H, W) bool the grid's doors if already found (:func:`door_cells`). At most
     ``MAX_GOALS`` goals, the nearest, are ordered; the rest follow, nearest first."""
     near = np.argsort(start, kind="stable")
     head, tail = near[:MAX_GOALS], near[MAX_GOALS:]
     points = np.vstack([np.array([robot], np.int64), goals[head]])
-    d = path_distances(passable, resolution, points, door_cells(grid, resolution), DOOR_TOLL)
+    if doors is None:
+        doors = door_cells(grid, resolution)
+    d = path_distances(passable, resolution, points, doors, DOOR_TOLL)
     # A goal the coarse graph cannot link (a one-cell passage lost in coarsening) is as far as the planner's
     # distances to both added: the triangle's bound.
     s = start[head]

@@ -37,10 +37,20 @@ choose again live in :mod:`homing.mapping.explorer`, shared by all.
   at 5 cm cells and hardly counts, or the nearest frontier — sends the robot
   back for the door it passed or across the building for the largest
   frontier; the tour passes each room on the way and finishes a room before
-  leaving it. Once no frontier of explore_lite's minimum size is left, ones
-  down to ``CRUMB_SIZE`` are toured, so the run does not end short of the
-  whole map (explore_lite's "ends early"). (Touring them from the start was
-  tried: slower in halls, where the long frontiers reveal them anyway.)
+  leaving it. The tour takes the frontiers in three tiers, the next only
+  when the one before is empty: first those at least ``LONG_FRONTIER`` long
+  and the shorter ones of the room the robot stands in (:func:`robot_room`:
+  what it reaches without passing a door); then every one of explore_lite's
+  minimum size; then ones down to ``CRUMB_SIZE``, so the run does not end
+  short of the whole map (explore_lite's "ends early"). From a hospital's
+  corridor the robot looks into each room through its door and sees a short
+  frontier behind a bed: the first tier sweeps the corridor and the open
+  wards and comes back for those rooms last, as explore_lite's gain term
+  does, and a room the robot has entered is finished before it leaves.
+  (Touring the crumbs from the start was tried: slower in halls, where the
+  long frontiers reveal them anyway. Deferring every short frontier, the
+  robot's own room's too, was tried: faster in hospitals, slower in offices,
+  where it left rooms half-seen behind desks and came back for them.)
 - ``gain_rate`` — information gain per travel time (the default before
   ``frontier_travel``: better in worlds of many small rooms, slower in
   halls, where it leaves a hall half-seen for a bigger gain elsewhere and
@@ -89,6 +99,7 @@ MIN_FRONTIER_SIZE = 0.75  # [m] explore_lite launch default
 CENTROID_TOLERANCE = 1.0  # [m] how far a centroid goal may be moved to a reachable cell
 SAME_FRONTIER = 1.5  # [m] frontier_travel: a frontier passing this near the current goal is the one driven to
 CRUMB_SIZE = 0.3  # [m] frontier_travel visits frontiers this small once none of MIN_FRONTIER_SIZE is left
+LONG_FRONTIER = 1.5  # [m] frontier_travel tours frontiers this long first, the shorter ones once none is left
 GAIN_RADIUS = 3.0  # [m] unknown area counted around a goal: half the lidar's 6 m range
 GAIN_POOL = 4  # cells pooled per side when counting unknown area (speed)
 TRAVEL_SPEED = 0.8 * NAV_MAX_V  # [m/s] average speed assumed along a path
@@ -294,6 +305,27 @@ def _goal_cells(ctx: GoalContext) -> np.ndarray:
     return np.argwhere(np.isfinite(ctx.distance) & ~ctx.excluded)
 
 
+def robot_room(ctx: GoalContext, doors: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) bool: the reachable cells the robot reaches without passing a door (``doors`` (H, W) bool, by
+    default :func:`frontier_tour.door_cells` of the grid); a robot standing in a door is in the rooms on both
+    sides."""
+    reach = np.isfinite(ctx.distance)
+    if doors is None:
+        doors = frontier_tour.door_cells(ctx.grid, ctx.resolution)
+    doors = doors & reach
+    r, c = int(round(ctx.robot_cell[0])), int(round(ctx.robot_cell[1]))
+    h, w = reach.shape
+    r, c = min(max(r, 0), h - 1), min(max(c, 0), w - 1)
+    _, labels = cv2.connectedComponents((reach & ~doors).astype(np.uint8), connectivity=8)
+    if not doors[r, c]:
+        keep = {int(labels[r, c])} - {0}
+    else:
+        _, dl = cv2.connectedComponents(doors.astype(np.uint8), connectivity=8)
+        blob = cv2.dilate((dl == dl[r, c]).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+        keep = set(np.unique(labels[blob]).tolist()) - {0}
+    return np.isin(labels, list(keep)) if keep else np.zeros_like(reach)
+
+
 def _centroid_goal(seg: FrontierSegment, ctx: GoalContext, free: np.ndarray) -> tuple[int, int] | None:
     """explore_lite's goal for a segment: its centroid, moved to the nearest of the ``free`` (N, 2) cells within
     ``CENTROID_TOLERANCE``; None when the centroid is excluded or no such cell is near (move_base would abort
@@ -315,14 +347,18 @@ class FrontierTravel(ExploreLite):
     ends_without_goal = False  # homing's rule: the map decides when it is done (homing.mapping.explorer)
     drop_explored = True  # a goal whose frontier the lidar has seen is left at once, not at the next replan
 
-    def __init__(self, min_frontier_size: float = MIN_FRONTIER_SIZE, crumb_size: float = CRUMB_SIZE) -> None:
+    def __init__(self, min_frontier_size: float = MIN_FRONTIER_SIZE, crumb_size: float = CRUMB_SIZE,
+                 long_frontier: float = LONG_FRONTIER) -> None:
         super().__init__(min_frontier_size=min_frontier_size)
         self.crumb_size = crumb_size
+        self.long_frontier = long_frontier
         self.tour: list[tuple[int, int]] = []  # the goals in the order of the last tour planned (for pictures)
 
-    def goals(self, ctx: GoalContext) -> list[tuple[FrontierSegment, tuple[int, int]]]:
-        """Each frontier of explore_lite's minimum size with its goal; when none is left, those down to
-        ``crumb_size`` (rather than stop short of the whole map: explore_lite's "ends early")."""
+    def goals(self, ctx: GoalContext, doors: np.ndarray | None = None) -> list[tuple[FrontierSegment, tuple[int, int]]]:
+        """The frontiers to tour with their goals: those at least ``long_frontier`` long and the shorter ones in the
+        robot's room (``doors`` (H, W) bool: the grid's doors, else found here); when none is left, every one of
+        explore_lite's minimum size; then those down to ``crumb_size`` (rather than stop short of the whole map:
+        explore_lite's "ends early")."""
         free = _goal_cells(ctx)
         for size in (self.min_frontier_size, self.crumb_size):
             out = []
@@ -330,12 +366,25 @@ class FrontierTravel(ExploreLite):
                 cell = _centroid_goal(seg, ctx, free)
                 if cell is not None:
                     out.append((seg, cell))
+            if out and size == self.min_frontier_size:
+                room: np.ndarray | None = None
+                first = []
+                for seg, cell in out:
+                    if seg.size * ctx.resolution < self.long_frontier:
+                        if room is None:
+                            room = robot_room(ctx, doors)
+                        if not room[cell]:
+                            continue
+                    first.append((seg, cell))
+                if first:
+                    return first
             if out:
                 return out
         return []
 
     def choose(self, ctx: GoalContext) -> GoalChoice | None:
-        goals = self.goals(ctx)
+        doors = frontier_tour.door_cells(ctx.grid, ctx.resolution)
+        goals = self.goals(ctx, doors)
         if not goals:
             self.tour = []
             return None
@@ -352,7 +401,7 @@ class FrontierTravel(ExploreLite):
         robot = (int(round(ctx.robot_cell[0])), int(round(ctx.robot_cell[1])))
         lengths = np.array([seg.size * ctx.resolution for seg, _ in goals])
         order = frontier_tour.plan(robot, ctx.grid, ctx.resolution, np.isfinite(ctx.distance), cells, start, current,
-                                   lengths)
+                                   lengths, doors)
         self.tour = [goals[i][1] for i in order]
         seg, cell = goals[order[0]]
         return GoalChoice(cell, seg, [s for s, _ in goals], -float(start[order[0]]))

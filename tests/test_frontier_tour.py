@@ -20,7 +20,7 @@ from homing.mapping.frontier_tour import (
     path_distances,
     tour_length,
 )
-from homing.mapping.strategies import GoalContext, make_strategy
+from homing.mapping.strategies import GoalContext, make_strategy, robot_room
 
 from homing.map_server import FREE, OCCUPIED, UNKNOWN
 from tests.mapping_helpers import travel_distance
@@ -77,14 +77,21 @@ def test_path_distances_go_round_the_corner_of_an_l_shaped_corridor():
     assert np.isinf(path_distances(passable, RES, pts)[0, 1])
 
 
-def _rooms_off_a_corridor(doors: tuple[int, ...] = (90, 190, 290, 390)) -> np.ndarray:
-    """A 2 m-wide corridor (rows 20-59, cols 10-479) walled south and west, its east end open onto unknown; a
-    1.2 m door in its north wall at each of ``doors`` (cols), through which the lidar has seen a 1.5 m × 0.7 m
-    patch of the room beyond (the rest of each room unknown)."""
+def _corridor() -> np.ndarray:
+    """A 2 m-wide corridor (rows 20-59, cols 10-479) walled north, south and west, its east end open onto
+    unknown."""
     g = np.full((160, 520), UNKNOWN, np.int8)
     g[20:60, 10:480] = FREE
     g[19, 9:480] = g[60, 9:480] = OCCUPIED
     g[19:61, 9] = OCCUPIED
+    return g
+
+
+def _rooms_off_a_corridor(doors: tuple[int, ...] = (90, 190, 290, 390)) -> np.ndarray:
+    """A 2 m-wide corridor (rows 20-59, cols 10-479) walled south and west, its east end open onto unknown; a
+    1.2 m door in its north wall at each of ``doors`` (cols), through which the lidar has seen a 1.5 m × 0.7 m
+    patch of the room beyond (the rest of each room unknown)."""
+    g = _corridor()
     for c in doors:
         g[60, c - 12 : c + 12] = FREE
         g[61:75, c - 15 : c + 15] = FREE
@@ -175,12 +182,62 @@ def test_a_robot_in_a_room_finishes_the_room_before_leaving_it():
     ctx = _ctx(g, robot)
     nearest = make_strategy("nearest").choose(ctx)
     assert nearest is not None and nearest.cell[1] < 39  # outside: the geometry puts the corridor nearest
-    ft = make_strategy("frontier_travel")
+    ft = make_strategy("frontier_travel", long_frontier=0.0)  # the tour alone: every frontier in one tier
     choice = ft.choose(ctx)
     assert choice is not None and len(ft.tour) == 3
     assert all(c > 40 for _, c in ft.tour[:2])  # both room openings first ...
     assert ft.tour[2][1] < 39  # ... then out through the door
     assert choice.cell == ft.tour[0]
+    # The default does the same by its tiers: the corridor's end (1.45 m, shorter than LONG_FRONTIER) lies
+    # beyond the door, so it waits until the room the robot stands in is done.
+    ft = make_strategy("frontier_travel")
+    again = ft.choose(ctx)
+    assert again is not None and again.cell == choice.cell
+    assert len(ft.tour) == 2 and all(c > 40 for _, c in ft.tour)
+
+
+def _rooms_seen_through_their_doors(doors: tuple[int, ...] = (90, 190, 290, 390)) -> np.ndarray:
+    """The corridor of :func:`_rooms_off_a_corridor`, through each of whose 1.2 m doors the lidar has seen a
+    1.3 m × 0.7 m patch of the room beyond between the room's seen side walls: a 1 m frontier per room (a
+    hospital's row of rooms, looked into from the corridor), and the corridor's 2 m open east end."""
+    g = _corridor()
+    for c in doors:
+        g[60, c - 12 : c + 12] = FREE
+        g[61:75, c - 13 : c + 13] = FREE
+        g[61:75, c - 14] = g[61:75, c + 13] = OCCUPIED
+    return g
+
+
+def test_from_a_corridor_the_rooms_seen_through_their_doors_wait_for_the_long_frontiers():
+    """Rooms whose doors the robot has looked through show a short frontier each (shorter than LONG_FRONTIER,
+    longer than explore_lite's minimum); the corridor's open end is long. The default sweeps the corridor
+    first and comes back for the rooms once no long frontier is left; the tour alone visits each room on the
+    way (as in :func:`test_default_strategy_visits_the_rooms_off_a_corridor_in_corridor_order`)."""
+    g = _rooms_seen_through_their_doors()
+    robot = (40, 20)
+    ft = make_strategy("frontier_travel")
+    choice = ft.choose(_ctx(g, robot))
+    assert choice is not None and choice.cell[1] >= 470 and len(ft.tour) == 1  # the east end, alone
+    tour_only = make_strategy("frontier_travel", long_frontier=0.0)
+    first = tour_only.choose(_ctx(g, robot))
+    assert first is not None and abs(first.cell[1] - 90) <= 15 and len(tour_only.tour) == 5
+    g[20:60, 470:480] = OCCUPIED  # the east end seen closed: only the rooms are left, and they are toured
+    choice = ft.choose(_ctx(g, robot))
+    assert choice is not None and len(ft.tour) == 4 and abs(choice.cell[1] - 90) <= 15
+
+
+def test_the_robots_room_ends_at_its_doors():
+    """Two rooms joined by a 1 m door: from inside one, the robot's room is that room (less the door's cells);
+    standing in the door, it is both."""
+    g = np.full((100, 200), OCCUPIED, np.int8)
+    g[10:90, 10:95] = FREE
+    g[10:90, 100:190] = FREE
+    g[40:60, 95:100] = FREE
+    doors = door_cells(g, RES)
+    inside = robot_room(_ctx(g, (50, 40)))
+    assert inside[20:80, 20:80].all() and not inside[:, 100:].any() and not (inside & doors).any()
+    in_door = robot_room(_ctx(g, (50, 97)))
+    assert in_door[20:80, 20:80].all() and in_door[20:80, 120:180].all()
 
 
 def test_the_current_goal_is_kept_unless_another_tour_is_clearly_shorter():
