@@ -65,6 +65,9 @@ class Scene:
             self._add_dock()
             self.tag_bodies = add_tag_bodies(c, world.tags)
         self.obstacles: dict[str, int] = {}
+        # Bullet keeps a shape when its body is removed (and will not remove one it thinks in use), so boxes of
+        # one size share one collision and one visual shape: a long run's faults and changes make no new ones.
+        self._box_shapes: dict[tuple[float, float], tuple[int, int]] = {}
 
     # --- static decoration ---------------------------------------------------------
     def _add_dock(self) -> None:
@@ -80,9 +83,14 @@ class Scene:
                      size: tuple[float, float] = (OBSTACLE_SIZE, OBSTACLE_SIZE)) -> None:
         """A lidar-visible box of ``size`` (sx, sy) [m] (faults, world changes); replaces any under ``key``."""
         self.remove_obstacle(key)
-        half = [size[0] / 2, size[1] / 2, OBSTACLE_HEIGHT / 2]
-        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=self.client)
-        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=OBSTACLE_RGBA, physicsClientId=self.client)
+        shapes = self._box_shapes.get((size[0], size[1]))
+        if shapes is None:
+            half = [size[0] / 2, size[1] / 2, OBSTACLE_HEIGHT / 2]
+            shapes = (p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=self.client),
+                      p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=OBSTACLE_RGBA,
+                                          physicsClientId=self.client))
+            self._box_shapes[(size[0], size[1])] = shapes
+        col, vis = shapes
         self.obstacles[key] = p.createMultiBody(0, col, vis, [x, y, OBSTACLE_HEIGHT / 2], _quat_yaw(yaw),
                                                 physicsClientId=self.client)
 

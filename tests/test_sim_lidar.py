@@ -66,3 +66,42 @@ def test_scans_arrive_at_5_5_hz(room) -> None:
     gaps = np.diff([s.stamp for s in scans])
     assert np.allclose(gaps.mean(), 1 / 5.5, atol=0.02)
     assert scans[0].ranges.dtype == np.float32 and scans[0].ranges.shape == (360,)
+
+
+def test_obstacles_added_and_removed_again_and_again_are_seen_where_they_stand_and_make_no_new_shapes(room) -> None:
+    """A long run's faults and world changes add and remove boxes for days: each is seen by a ray where it stands
+    and gone once removed, and Bullet's shape table stops growing after the first box of each size (Bullet keeps
+    a removed body's shapes, so a new shape per box would grow it for ever)."""
+    from homing.sim.scene import Scene, p
+
+    scene = Scene(room, visuals=False)
+    try:
+        up = np.array([[2.0 + x, 0.2, 0.3] for x in (0.0, 1.0, 2.0)])
+        down = up + np.array([0.0, 3.6, 0.0])  # rays across the room, at three x
+
+        def seen() -> list[bool]:
+            frac, ids = scene.rays(up, down)
+            return [bool(i >= 0 and i != scene.walls) for i in ids]
+
+        def next_shape() -> int:  # the index Bullet gives the next shape: its table's length
+            return p.createCollisionShape(p.GEOM_SPHERE, radius=0.01, physicsClientId=scene.client)
+
+        scene.add_obstacle("a", 2.0, 2.0)
+        scene.add_obstacle("b", 3.0, 2.0, size=(0.5, 0.3))
+        scene.remove_obstacle("a")
+        scene.remove_obstacle("b")
+        first = next_shape()
+        for k in range(30):
+            x = (2.0, 3.0, 4.0)[k % 3]
+            scene.add_obstacle("a", x, 2.0)
+            scene.add_obstacle("b", 4.0 if x == 2.0 else 2.0, 2.0, size=(0.5, 0.3))
+            want = [False, False, False]
+            want[int(round(x - 2.0))] = True
+            want[2 if x == 2.0 else 0] = True
+            assert seen() == want
+            scene.remove_obstacle("a")
+            scene.remove_obstacle("b")
+            assert seen() == [False, False, False]
+        assert next_shape() == first + 1
+    finally:
+        scene.close()
