@@ -18,6 +18,10 @@ Engines:
   started here for the sweep. Ray is the optional extra ``homing[ray]``;
   every node of a cluster needs homing installed (or a ``runtime_env``).
 
+A stopped sweep (Ctrl-C, SIGTERM) starts no more runs and stops those in
+flight, on every engine: the pool's workers are terminated, Ray's tasks
+cancelled (their workers killed) before it returns.
+
 A module adds the flags with :func:`add_engine_arguments` and reads them
 with :func:`engine_from_args`.
 """
@@ -34,6 +38,7 @@ from typing import Any
 from homing.errors import UserError
 
 ENGINES = ("local", "pool", "ray")
+CANCEL_WAIT = 30.0  # [s] a stopped Ray sweep waits this long at most for its cancelled runs' workers to be killed
 
 
 @dataclass(frozen=True)
@@ -160,6 +165,7 @@ def _ray(fn: Callable[..., Any], jobs: Sequence[tuple[Any, ...]], engine: Engine
         except (ConnectionError, RuntimeError, ValueError) as err:
             raise UserError(f"--engine ray: cannot reach a Ray cluster at {engine.address or 'a new local one'}: "
                             f"{str(err).splitlines()[0] if str(err) else type(err).__name__}") from None
+    pending: dict[Any, int] = {}
     try:
         task = ray.remote(num_cpus=1, max_retries=0)(_call)
         pending = {task.remote(fn, job): i for i, job in enumerate(jobs)}
@@ -172,6 +178,16 @@ def _ray(fn: Callable[..., Any], jobs: Sequence[tuple[Any, ...]], engine: Engine
                 except Exception as err:  # the task's worker died (node lost, out of memory)
                     out = Outcome(jobs[i], None, f"{type(err).__name__}: {str(err).splitlines()[0]}")
                 finished(i, out)
+    except BaseException:
+        # Stopped (Ctrl-C, SIGTERM: KeyboardInterrupt). Left to the shutdown, a run in flight goes on until Ray
+        # tears its worker down in the background (a local Ray: still alive when the shutdown returned, in one
+        # stop of five here; a cluster: once it notices the driver gone). Cancel every run, killing the workers of
+        # those in flight, and wait until they are.
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        if pending:
+            ray.wait(list(pending), num_returns=len(pending), timeout=CANCEL_WAIT)
+        raise
     finally:
         if started:
             ray.shutdown()

@@ -141,10 +141,14 @@ def _start_then_wait(folder: str, i: int) -> int:
     return i
 
 
-def test_a_stopped_sweep_stops_its_workers_and_starts_no_more_runs(tmp_path: Path) -> None:
+@pytest.mark.parametrize("engine", ["pool", "ray"])
+def test_a_stopped_sweep_stops_its_workers_and_starts_no_more_runs(engine: str, tmp_path: Path) -> None:
     """``bench explore --workers 2`` sent SIGTERM went on with every queued run (minutes each) before it exited: the
     process pool waited for them, and a signal sent to the bench alone never reaches its workers. Stopped (the CLI
-    makes Ctrl-C and SIGTERM a KeyboardInterrupt) as its first run ends, a sweep ends its runs there."""
+    makes Ctrl-C and SIGTERM a KeyboardInterrupt) as its first run ends, a sweep ends its runs there. On a local
+    Ray (``--engine ray``) the runs in flight are cancelled, their workers killed, before it returns."""
+    if engine == "ray":
+        pytest.importorskip("ray", reason="Ray is the optional extra homing[ray]")
     from homing.benchmarks.engine import Engine, run_jobs
 
     jobs = [(str(tmp_path), i) for i in range(8)]
@@ -153,10 +157,12 @@ def test_a_stopped_sweep_stops_its_workers_and_starts_no_more_runs(tmp_path: Pat
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run_jobs(_start_then_wait, jobs, Engine("pool", workers=2), stop)
+        run_jobs(_start_then_wait, jobs, Engine(engine, workers=2), stop)
     started = list(tmp_path.glob("started_*"))
-    assert len(started) < len(jobs)
+    assert 1 <= len(started) < len(jobs)
     for f in started:  # every worker that ran one is gone, not finishing its run in the background
+        if engine == "ray" and f.name == "started_0":
+            continue  # the first run's worker, done, may idle in Ray's pool (the shutdown ends it in the background)
         with pytest.raises(ProcessLookupError):
             os.kill(int(f.read_text()), 0)
     assert not list(tmp_path.glob("finished_*")), "a run went on after the sweep was stopped"
