@@ -89,3 +89,19 @@ def test_a_gap_narrower_than_the_robot_ends_exploration_with_the_gap_reported_an
     seen = np.zeros(len(rows), bool)
     seen[ok] = grid.data[gr[ok], gc[ok]] != UNKNOWN
     assert seen.mean() >= 0.95
+
+
+@pytest.mark.slow
+def test_a_run_until_the_target_ends_at_its_95_percent_with_the_full_runs_figures(tmp_path: Path) -> None:
+    """``bench explore --until-target``: the session ends at the first sample at 95 % coverage, and its t95, area
+    then and efficiency (what the ratios compare) are those of the same run let go on to its end."""
+    from homing.benchmarks.explore import COVERAGE_PERIOD, run_one
+
+    world = str(three_rooms(tmp_path))
+    full = run_one(world, "frontier_travel", seed=4, minutes=6.0)
+    cut = run_one(world, "frontier_travel", seed=4, minutes=6.0, until_target=True)
+    assert full.done and not full.stopped_at_target and full.explore_time > full.t95 + 1.0
+    assert cut.stopped_at_target and not cut.done
+    assert (cut.t95, cut.area95, cut.efficiency) == (full.t95, full.area95, full.efficiency)
+    assert cut.t95 <= cut.explore_time <= cut.t95 + 0.5  # it ended there (within a tick or two)
+    assert full.t95 % COVERAGE_PERIOD < 0.5  # on the sampling grid, as the full sweep's
