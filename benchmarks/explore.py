@@ -372,7 +372,7 @@ def run(args: argparse.Namespace) -> int:
         f"(else final area / session length); medians over {args.seeds} seed(s) "
         f"({len(results)} runs, {time.monotonic() - t0:.0f} s wall, median rtf "
         f"{_median([r.rtf for r in results]):.1f}×)"
-        + (f"; {cut} run(s) ended at 95 % (--until-target): their coverage, PL, FD and AE are then's" if cut else ""),
+        + (f"; {cut} run(s) ended at 95 % (--until-target): their figures but eff and t95 are then's" if cut else ""),
         ["world", "strategy", "eff m²/s", "FD m", "PL m", "AE m²", "coverage", "min cov", "t95 s", "agree", "bumps",
          "×nearest", "×explore_lite"],
         rows,
