@@ -76,6 +76,11 @@ class Dock:
         return self.station.compose(Pose2(DOCK_DEPTH, 0.0, 0.0))
 
     @cached_property
+    def _to_emitter(self) -> Pose2:
+        """World → frame E."""
+        return self.emitter.inverse()
+
+    @cached_property
     def docked(self) -> Pose2:
         """The docked robot's base_link pose (facing the dock)."""
         return self.station.compose(Pose2(DOCK_DEPTH + BASE_RADIUS, 0.0, math.pi))
@@ -85,30 +90,38 @@ class Dock:
         return self.station.compose(Pose2(DOCK_DEPTH + BASE_RADIUS + distance, 0.0, math.pi))
 
     # --- IR -----------------------------------------------------------------
+    def code_at(self, x: float, y: float) -> int:
+        """The IR bit code lit at the world point (x, y), ignoring occlusion and receiver FOV."""
+        e = self._to_emitter
+        c, s = math.cos(e.theta), math.sin(e.theta)
+        dx, dy = e.x + c * x - s * y, e.y + s * x + c * y  # the point in frame E
+        if not (0.0 < dx <= FIELD_DEPTH and abs(dy) <= FIELD_HALF_WIDTH):
+            return 0
+        near = math.hypot(dx, dy) <= NEAR_RANGE
+        phi = math.atan2(dy, dx)
+        code = 0
+        if abs(phi) <= CENTER_HALF_ANGLE or abs(dy) <= CENTER_MIN_HALF_WIDTH:
+            code |= IR.NEAR_CENTER if near else IR.FAR_CENTER
+        if phi >= SIDE_INNER_ANGLE and dy > 0:
+            code |= IR.NEAR_LEFT if near else IR.FAR_LEFT
+        if phi <= -SIDE_INNER_ANGLE and dy < 0:
+            code |= IR.NEAR_RIGHT if near else IR.FAR_RIGHT
+        return int(code)
+
     def codes_at(self, xy: np.ndarray) -> np.ndarray:
-        """(N,) int IR bit codes lit at world points ``xy`` (N, 2), ignoring occlusion and receiver FOV."""
-        e = self.emitter
-        local = e.inverse().transform_points(np.asarray(xy, dtype=float).reshape(-1, 2))
-        dx, dy = local[:, 0], local[:, 1]
-        r = np.hypot(dx, dy)
-        phi = np.arctan2(dy, dx)
-        lit = (dx > 0.0) & (dx <= FIELD_DEPTH) & (np.abs(dy) <= FIELD_HALF_WIDTH)
-        near = r <= NEAR_RANGE
-        centre = (np.abs(phi) <= CENTER_HALF_ANGLE) | (np.abs(dy) <= CENTER_MIN_HALF_WIDTH)
-        left = (phi >= SIDE_INNER_ANGLE) & (dy > 0)
-        right = (phi <= -SIDE_INNER_ANGLE) & (dy < 0)
-        codes = np.zeros(len(local), dtype=np.int64)
-        codes |= np.where(centre, np.where(near, int(IR.NEAR_CENTER), int(IR.FAR_CENTER)), 0)
-        codes |= np.where(left, np.where(near, int(IR.NEAR_LEFT), int(IR.FAR_LEFT)), 0)
-        codes |= np.where(right, np.where(near, int(IR.NEAR_RIGHT), int(IR.FAR_RIGHT)), 0)
-        return np.where(lit, codes, 0)
+        """(N,) int IR bit codes lit at world points ``xy`` (N, 2) (:meth:`code_at` at each)."""
+        pts = np.asarray(xy, dtype=float).reshape(-1, 2)
+        return np.array([self.code_at(x, y) for x, y in pts.tolist()], dtype=np.int64)
 
     def receivers(self, pose: Pose2) -> list[tuple[str, np.ndarray, float]]:
         """(name, world xy, axis yaw) of the robot's three receivers at ``pose``."""
+        return [(name, np.array(xy), axis) for name, xy, axis in self._receivers(pose)]
+
+    def _receivers(self, pose: Pose2) -> list[tuple[str, tuple[float, float], float]]:
         out = []
         for name, bearing in RECEIVERS:
             p = pose.compose(Pose2(RECEIVER_RADIUS * math.cos(bearing), RECEIVER_RADIUS * math.sin(bearing), bearing))
-            out.append((name, np.array([p.x, p.y]), p.theta))
+            out.append((name, (p.x, p.y), p.theta))
         return out
 
     def ir(self, pose: Pose2, clear: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> DockIR:
@@ -119,21 +132,24 @@ class Dock:
         assumes they all are.
         """
         e = self.emitter
-        if math.hypot(pose.x - e.x, pose.y - e.y) > FIELD_DEPTH + FIELD_HALF_WIDTH + BASE_RADIUS:
+        # The receivers lie within RECEIVER_RADIUS of the centre: a centre that far outside the lit
+        # box leaves every receiver dark (code_at is 0 there), so the robot sees nothing.
+        centre = self._to_emitter.compose(pose)
+        if (centre.x <= -RECEIVER_RADIUS or centre.x > FIELD_DEPTH + RECEIVER_RADIUS
+                or abs(centre.y) > FIELD_HALF_WIDTH + RECEIVER_RADIUS):
             return DockIR()
-        recs = self.receivers(pose)
-        pts = np.array([p for _, p, _ in recs])
-        codes = self.codes_at(pts)
-        facing = np.array([
-            abs(wrap_angle(math.atan2(e.y - p[1], e.x - p[0]) - axis)) <= RECEIVER_HALF_FOV[name]
-            for name, p, axis in recs
-        ])
-        seen = facing & (codes != 0)
-        if clear is not None and seen.any():
-            src = np.tile([e.x, e.y], (len(pts), 1))
-            seen &= np.asarray(clear(src, pts), dtype=bool)
-        vals = {name: IR(int(c)) if s else IR.NONE for (name, _, _), c, s in zip(recs, codes, seen, strict=True)}
-        return DockIR(right=vals["right"], centre=vals["centre"], left=vals["left"])
+        seen: dict[str, tuple[tuple[float, float], int]] = {}
+        for name, (x, y), axis in self._receivers(pose):
+            code = self.code_at(x, y)
+            if code and abs(wrap_angle(math.atan2(e.y - y, e.x - x) - axis)) <= RECEIVER_HALF_FOV[name]:
+                seen[name] = ((x, y), code)
+        if clear is not None and seen:
+            pts = np.array([xy for xy, _ in seen.values()])
+            ok = np.asarray(clear(np.tile([e.x, e.y], (len(pts), 1)), pts), dtype=bool)
+            seen = {name: v for (name, v), k in zip(seen.items(), ok, strict=True) if k}
+        vals = {name: IR(code) for name, (_, code) in seen.items()}
+        return DockIR(right=vals.get("right", IR.NONE), centre=vals.get("centre", IR.NONE),
+                      left=vals.get("left", IR.NONE))
 
     # --- contacts and body -----------------------------------------------------
     def docked_error(self, pose: Pose2) -> tuple[float, float, float]:

@@ -42,30 +42,33 @@ class SimLidar:
         self.increment = 2 * math.pi / rays
         a = np.arange(rays) * self.increment
         self._dirs = np.column_stack([np.cos(a), np.sin(a)])
+        self._next, self._prev = np.roll(np.arange(rays), -1), np.roll(np.arange(rays), 1)
 
     def true_ranges(self, pose: Pose2) -> tuple[np.ndarray, np.ndarray]:
         """(N,) noise-free ranges [m] (inf: no hit within range_max) and (N,) incidence angles [rad]."""
         laser = pose.compose(LASER_POSE)
         c, s = math.cos(laser.theta), math.sin(laser.theta)
         d = self._dirs @ np.array([[c, s], [-s, c]])  # rotate ray directions into the world
-        start = np.column_stack([np.full(self.n, laser.x), np.full(self.n, laser.y), np.full(self.n, LIDAR_HEIGHT)])
+        start = np.empty((self.n, 3))
+        start[:] = (laser.x, laser.y, LIDAR_HEIGHT)
         end = start.copy()
         end[:, :2] += d * self.range_max
         frac, ids = self.scene.rays(start, end)
-        hit = (ids >= 0) & (frac < 1.0)
-        ranges = np.where(hit, frac * self.range_max, np.inf)
-        incidence = self._incidence(d, ranges, laser)
-        return ranges, incidence
+        ranges = np.where((ids >= 0) & (frac < 1.0), frac * self.range_max, np.inf)
+        return ranges, self._incidence(d, ranges, laser)
 
     def _incidence(self, d: np.ndarray, ranges: np.ndarray, laser: Pose2) -> np.ndarray:
-        # Neighbouring hit points give the surface's direction; the normal is ⟂ to it.
+        """(N,) angle [rad] between each ray and the surface normal where it hit (0 where unknown).
+
+        Neighbouring hit points give the surface's direction; the normal is ⟂ to it.
+        """
         with np.errstate(invalid="ignore", divide="ignore"):
-            pts = np.column_stack([laser.x + d[:, 0] * ranges, laser.y + d[:, 1] * ranges])
-            tangent = np.roll(pts, -1, axis=0) - np.roll(pts, 1, axis=0)
-            tn = tangent / np.linalg.norm(tangent, axis=1, keepdims=True)
-            cos_ray_tangent = np.abs(np.sum(tn * d, axis=1))
-        inc = np.arcsin(np.clip(np.nan_to_num(cos_ray_tangent, nan=0.0), 0.0, 1.0))
-        return inc  # angle between the ray and the surface normal
+            hits = d * ranges[:, None] + (laser.x, laser.y)  # (N, 2) hit points in the world
+            tangent = hits[self._next] - hits[self._prev]
+            tangent /= np.sqrt(np.add.reduce(tangent * tangent, axis=1))[:, None]
+            cos_ray_tangent = np.abs(np.add.reduce(tangent * d, axis=1))
+        np.nan_to_num(cos_ray_tangent, copy=False, nan=0.0)
+        return np.arcsin(np.clip(cos_ray_tangent, 0.0, 1.0, out=cos_ray_tangent))
 
     def scan(self, pose: Pose2, stamp: float, rng: np.random.Generator, extra_dropout: float = 0.0) -> Scan:
         """One noisy scan at the true ``pose``; ``extra_dropout`` (0..1) adds a fault's burst of lost rays."""

@@ -14,6 +14,7 @@ Only :mod:`homing.sim` imports pybullet (DESIGN.md, rules of the house).
 from __future__ import annotations
 
 import math
+import operator
 
 import numpy as np
 from homing.robot.turtlebot import BASE_RADIUS
@@ -34,6 +35,7 @@ OBSTACLE_HEIGHT = 0.70  # [m] …and this tall (the lidar at 0.5 m sees them)
 WALL_RGBA = (0.85, 0.83, 0.78, 1.0)
 DOCK_RGBA = (0.15, 0.15, 0.15, 1.0)
 OBSTACLE_RGBA = (0.9, 0.45, 0.1, 1.0)
+_BODY, _FRACTION = operator.itemgetter(0), operator.itemgetter(2)  # of a rayTestBatch result
 
 
 def _quat_yaw(yaw: float) -> tuple[float, float, float, float]:
@@ -135,8 +137,8 @@ class Scene:
     def rays(self, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Cast rays (N, 3) → (N, 3); returns hit fraction (N,) (1 = no hit) and hit body ids (N,)."""
         res = p.rayTestBatch(starts, ends, numThreads=1, physicsClientId=self.client)
-        ids = np.fromiter((r[0] for r in res), dtype=np.int64, count=len(res))
-        frac = np.fromiter((r[2] for r in res), dtype=float, count=len(res))
+        ids = np.fromiter(map(_BODY, res), dtype=np.int64, count=len(res))
+        frac = np.fromiter(map(_FRACTION, res), dtype=float, count=len(res))
         return np.where(ids >= 0, frac, 1.0), ids
 
     def close(self) -> None:

@@ -101,6 +101,29 @@ def test_codes_overlap_at_region_borders_and_split_near_far(lab) -> None:
     assert at(-0.05, 0.0) == 0  # behind the emitters
 
 
+def test_ir_around_the_field_is_what_each_receiver_sees(lab) -> None:
+    # Dock.ir skips the receivers' geometry when the centre is too far out of the lit box for any
+    # receiver to be in it: around the box's edges it must give each receiver's own code (lit where
+    # it stands and facing the emitter), so the shortcut darkens no receiver the field lights.
+    import numpy as np
+    from homing.robot.frames import wrap_angle
+
+    dock, rng = lab.dock, np.random.default_rng(7)
+    e = dock.emitter
+    lit_seen = 0
+    for _ in range(4000):
+        dx = rng.uniform(-0.5, dk.FIELD_DEPTH + 0.5)
+        dy = rng.uniform(-dk.FIELD_HALF_WIDTH - 0.5, dk.FIELD_HALF_WIDTH + 0.5)
+        pose = e.compose(Pose2(dx, dy, rng.uniform(-math.pi, math.pi)))
+        ir = dock.ir(pose)
+        for name, p, axis in dock.receivers(pose):
+            code = int(dock.codes_at(p[None])[0])
+            facing = abs(wrap_angle(math.atan2(e.y - p[1], e.x - p[0]) - axis)) <= dk.RECEIVER_HALF_FOV[name]
+            assert getattr(ir, name) == (IR(code) if facing and code else IR.NONE), (dx, dy, name)
+        lit_seen += ir.any()
+    assert lit_seen > 100  # the sample reached the lit box, not only its surroundings
+
+
 def test_obstacle_in_front_of_dock_blocks_ir(lab) -> None:
     robot = SimRobot(lab, seed=1, camera=False, start=_facing_dock(lab, 1.5, 0.0),
                      faults=[Fault("dock_obstacle", at=0.0, distance=0.5)])
