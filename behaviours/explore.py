@@ -24,9 +24,13 @@ explorer and its blacklist survive the restart.
 
 "Done" means done (:mod:`homing.mapping.explorer`, :mod:`homing.mapping.reachable`):
 SUCCESS only when the map has no frontier the robot's footprint could reach
-from where it is (frontiers behind gaps narrower than the robot and places
-given up are reported in the feedback message, with the robot's coverage
-estimate). Frontiers it could reach but the costmap cuts off end the leaf
+from where it is (frontiers behind gaps narrower than the robot are reported
+in the feedback message, with the robot's coverage estimate). When the only
+ones left are places it gave up (no progress, unreachable, not cleared, cut
+off), exploration is **incomplete**: FAILURE ``incomplete`` with the same
+report, ``/explore/explored`` stays False, and the next start of the leaf
+(a recovery round, or the persistent mission's next round) tries every one
+of them again. Frontiers it could reach but the costmap cuts off end the leaf
 with FAILURE ``frontier_cut_off`` (or ``frontier_not_cleared``) for the
 recoveries; after a round of them those frontiers are given up.
 """
@@ -40,7 +44,6 @@ import numpy as np
 from homing.behaviours.base import (
     TIMEOUT_PARAM,
     HomingBehaviour,
-    LongAction,
 )
 from homing.behaviours.keys import (
     CMD_VEL_KEY,
@@ -52,7 +55,7 @@ from homing.behaviours.keys import (
     OBSERVATION_KEY,
     POSE_KEY,
 )
-from homing.behaviours.motion import failure_reason
+from homing.behaviours.motion import FAILURE_KEY, FAILURE_PARAM, _ReportsFailure, failure_reason
 from homing.behaviours.registry import Param, register
 from homing.mapping.explorer import REACH_RADIUS, Explorer, ExploreStep
 from homing.mapping.reachable import frontier_report
@@ -77,7 +80,7 @@ def distance_field(navigator: Any, grid: Any, pose: Pose2) -> np.ndarray | None:
 
 
 @register("Explore")
-class Explore(LongAction):
+class Explore(_ReportsFailure):
     """Drive to frontier goals one at a time with a named strategy until no frontier is left (SUCCESS); RUNNING while driving.
 
     Each goal goes to the navigation service's navigator; the next one is
@@ -93,14 +96,16 @@ class Explore(LongAction):
         Param("reach_radius", float, REACH_RADIUS, "m", "a goal this close counts as reached", above=0.0),
         Param("progress_timeout", float, 30.0, "s", "blacklist a goal the robot gets no closer to for this long",
               above=0.0),
+        FAILURE_PARAM,
         TIMEOUT_PARAM,
     )
     READS = (OBSERVATION_KEY, NAVIGATOR_KEY, GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY)
-    WRITES = (CMD_VEL_KEY, GOAL_KEY, EXPLORED_KEY)
+    WRITES = (CMD_VEL_KEY, GOAL_KEY, EXPLORED_KEY, "$failure_key")
 
     def __init__(self, name: str, strategy: str = DEFAULT_STRATEGY, decide_period: float = DECIDE_PERIOD,
                  reach_radius: float = REACH_RADIUS, progress_timeout: float = 30.0, timeout: float = 0.0,
-                 **kwargs: Any) -> None:
+                 failure_key: str = FAILURE_KEY, **kwargs: Any) -> None:
+        self.failure_key = failure_key
         super().__init__(name, timeout=timeout, **kwargs)
         if strategy not in STRATEGIES:
             raise ValueError(f"unknown strategy '{strategy}' (known: {', '.join(sorted(STRATEGIES))})")
@@ -115,6 +120,7 @@ class Explore(LongAction):
         self._next_decision = -math.inf
         self._nav_goal: Pose2 | None = None
         self._blocked_since: float | None = None
+        self.incomplete = False  # the last run ended with reachable places given up: try them again next start
 
     def setup(self, **kwargs: Any) -> None:
         super().setup(**kwargs)
@@ -131,6 +137,9 @@ class Explore(LongAction):
         self.navigator = self.read(NAVIGATOR_KEY)
         if self.navigator is None:
             return self.fail("no_navigator", "no navigation service (add 'navigation' to services)")
+        if self.incomplete and self.explorer is not None:
+            self.explorer.forgive()  # a later round, after a recovery: every place given up is tried again
+        self.incomplete = False
         self._explorer()
         self._next_decision = -math.inf
         self._nav_goal = None
@@ -191,6 +200,10 @@ class Explore(LongAction):
             self.navigator.cancel()
             self._nav_goal = None
             self.write(GOAL_KEY, None)
+            if step.gave_up and not getattr(self._explorer().strategy, "ends_without_goal", False):
+                self.incomplete = True
+                self.write(EXPLORED_KEY, False)
+                return self.fail("incomplete", f"incomplete: {self._explorer().end_message()}")
             self.feedback_message = f"explored: {self._explorer().end_message()}"
             self.write(EXPLORED_KEY, True)
             return Status.SUCCESS
@@ -221,6 +234,20 @@ class Explore(LongAction):
         if self.navigator is not None:
             self.navigator.cancel()
         self._nav_goal = None
+
+    def end_report(self) -> str | None:
+        """How exploration stands, for the end of a run's log: explored, incomplete (what was given up and why,
+        the coverage estimate), or what the map said when last asked; None before any verdict."""
+        if self.explorer is None or self.explorer.report is None:
+            return None
+        if self.status == Status.SUCCESS:
+            state = "explored"
+        elif self.incomplete:
+            state = "incomplete"
+        else:
+            state = f"not finished ({self.status.value.lower()})"
+        retried = f" (places given up tried again {self.explorer.retries}×)" if self.explorer.retries else ""
+        return f"{state}{retried}: {self.explorer.end_message()}"
 
 
 @register("NoFrontierLeft", kind="condition")

@@ -68,6 +68,7 @@ STRATEGY_ORDER = ("nearest", "largest_closest", "largest_random", "largest_rando
 MISSION = Path(__file__).resolve().parent.parent / "missions" / "explore.yaml"
 COVERAGE_PERIOD = 5.0  # [s] adapter time between coverage samples (time to 95 %, and the efficiency taken then)
 COVERAGE_TARGET = 0.95
+FALSE_DONE_AREA = 1.0  # [m²] a place this big left unseen in the navigable area makes "done" a false done
 THESIS = {  # table 5.1: efficiency [m²/s], FD [m], PL [m], AE [m²]
     "nearest": (0.0165, 1.286, 6.356, 31.748),
     "largest_closest": (0.0154, 8.237, 13.171, 53.039),
@@ -103,6 +104,7 @@ class RunResult:
     frontiers_left: int = -1  # frontiers the map says the robot could still reach when it ended (-1: did not end)
     given_up: int = 0  # frontiers given up (narrower than the robot, blacklisted places)
     stopped_at_target: bool = False  # ended at its first ≥ 95 % sample (--until-target): the figures are then's
+    unseen_place: float = math.nan  # [m²] the largest piece of the navigable area unseen at the end (truth)
 
 
 GENERATED = ("office", "hospital", "slam_office")  # homing.sim.buildings' kinds, run by --generated
@@ -155,7 +157,7 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
     are those of the full session; nothing after them is measured)."""
     import numpy as np
     from homing.benchmarks.common import run_to_end
-    from homing.mapping.evaluate import coverage
+    from homing.mapping.evaluate import coverage, unseen_places
     from homing.missions.compiler import compile_mission
     from homing.missions.runner import Runner
     from homing.sim import SimRobot, load_world
@@ -208,6 +210,7 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
         from homing.mapping.map_io import save_grid
 
         save_grid(save_map, grid)
+    unseen = unseen_places(grid, world.map, (start_truth.x, start_truth.y), world_from_map, min_area=0.0)
     steps = explore.explorer.goals_chosen if explore is not None and explore.explorer is not None else 0
     estimate, left, given_up = math.nan, -1, 0
     explorer = explore.explorer if explore is not None else None
@@ -223,6 +226,7 @@ def run_one(world_spec: str, strategy: str, seed: int, minutes: float, save_map:
         goals=int(steps), agreement=float(np.float64(cov.agreement)), wall=result.wall, rtf=result.rtf,
         estimate=estimate, frontiers_left=left, given_up=given_up,
         stopped_at_target=until_target and result.reason == "time_limit" and result.time < minutes * 60.0,
+        unseen_place=unseen[0] if unseen else 0.0,
     )  # fmt: skip
 
 
@@ -256,9 +260,19 @@ def ratios(results: list[RunResult], baseline: str) -> dict[tuple[str, str], flo
     return {k: _median(v) for k, v in run_ratios(results, baseline).items()}
 
 
-def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
+def false_done(r: RunResult) -> bool:
+    """The robot said done with a place of at least FALSE_DONE_AREA of the navigable area unseen (the truth's
+    verdict: frontiers it gave up count); runs saved before that figure: with a reachable frontier left."""
+    if math.isnan(r.unseen_place):
+        return r.done and r.frontiers_left > 0
+    return r.done and r.unseen_place >= FALSE_DONE_AREA
+
+
+def summarise(results: list[RunResult], bounds: dict[str, float] | None = None) -> dict[str, dict[str, dict[str, Any]]]:
     """JSON figures per world and strategy (medians over seeds) plus an ``all`` world (medians over every run;
-    its ratios are the median of every paired run's ratio)."""
+    its ratios are the median of every paired run's ratio); ``bounds``: explore-bound's time [s] per world, for
+    each run's t95 over it."""
+    bounds = bounds or {}
     vs_near, vs_lite = run_ratios(results, "nearest"), run_ratios(results, "explore_lite")
     out: dict[str, dict[str, dict[str, Any]]] = {}
     groups: dict[tuple[str, str], list[RunResult]] = {}
@@ -281,7 +295,8 @@ def summarise(results: list[RunResult]) -> dict[str, dict[str, dict[str, Any]]]:
         else:
             r_near, r_lite = _median(vs_near.get((world, strategy), [])), _median(vs_lite.get((world, strategy), []))
         out.setdefault(world, {})[strategy] = {
-            "false_done": sum(r.done and r.frontiers_left > 0 for r in runs),
+            "false_done": sum(false_done(r) for r in runs),
+            "t95_over_bound": _median([r.t95 / bounds[r.world] for r in runs if r.world in bounds]),
             "done": sum(r.done for r in runs), "given_up": sum(r.given_up for r in runs),
             "estimate": med("estimate"),
             "efficiency": med("efficiency"), "area": med("area"), "coverage": med("coverage"),
@@ -356,7 +371,8 @@ def run(args: argparse.Namespace) -> int:
     results += [o.result for o in outcomes if o.ok]
     failed = failures_table(outcomes)
     results.sort(key=lambda r: (r.world, STRATEGY_ORDER.index(r.strategy) if r.strategy in STRATEGY_ORDER else 99, r.seed))
-    summary = summarise(results)
+    bounds = _bounds(worlds, results)
+    summary = summarise(results, bounds)
     rows = []
     for world in [*(world_label(w) for w in worlds), "all"]:
         for strategy in args.strategies:
@@ -364,7 +380,7 @@ def run(args: argparse.Namespace) -> int:
             if s is None:
                 continue
             rows.append([world, strategy, s["efficiency"], s["farthest"], s["path_length"], s["area"],
-                         s["coverage"], s["min_coverage"], s["t95"], s["agreement"], s["bumps"],
+                         s["coverage"], s["min_coverage"], s["t95"], s["t95_over_bound"], s["agreement"], s["bumps"],
                          s["ratio_vs_nearest"], s["ratio_vs_explore_lite"]])
     cut = sum(r.stopped_at_target for r in results)
     print_table(
@@ -373,19 +389,20 @@ def run(args: argparse.Namespace) -> int:
         f"({len(results)} runs, {time.monotonic() - t0:.0f} s wall, median rtf "
         f"{_median([r.rtf for r in results]):.1f}×)"
         + (f"; {cut} run(s) ended at 95 % (--until-target): their figures but eff and t95 are then's" if cut else ""),
-        ["world", "strategy", "eff m²/s", "FD m", "PL m", "AE m²", "coverage", "min cov", "t95 s", "agree", "bumps",
-         "×nearest", "×explore_lite"],
+        ["world", "strategy", "eff m²/s", "FD m", "PL m", "AE m²", "coverage", "min cov", "t95 s", "/bound", "agree",
+         "bumps", "×nearest", "×explore_lite"],
         rows,
     )  # fmt: skip
     kinds = sorted({plan_kind(r.world) for r in results})
     print_table(
-        "Per plan kind (medians over every run of the kind; ratios paired run by run; false done: the robot said "
-        "done with frontiers it could reach left)"
+        "Per plan kind (medians over every run of the kind; coverage of the navigable area; ratios paired run by "
+        f"run; /bound: t95 over explore-bound's time; false done: the robot said done with {FALSE_DONE_AREA:g} m² "
+        "or more of the navigable area unseen in one place)"
         + (f"; {cut} run(s) ended at 95 %: not done, by --until-target" if cut else ""),
-        ["kind", "strategy", "runs", "coverage", "min cov", "t95 s", "×nearest", "×explore_lite", "done",
+        ["kind", "strategy", "runs", "coverage", "min cov", "t95 s", "/bound", "×nearest", "×explore_lite", "done",
          "false done", "estimate"],
-        [[kind, strategy, s["runs"], s["coverage"], s["min_coverage"], s["t95"], s["ratio_vs_nearest"],
-          s["ratio_vs_explore_lite"], s["done"], s["false_done"], s["estimate"]]
+        [[kind, strategy, s["runs"], s["coverage"], s["min_coverage"], s["t95"], s["t95_over_bound"],
+          s["ratio_vs_nearest"], s["ratio_vs_explore_lite"], s["done"], s["false_done"], s["estimate"]]
          for kind in [*kinds, "all"] for strategy in args.strategies
          if (s := summary.get("all" if kind == "all" else f"kind:{kind}", {}).get(strategy)) is not None],
     )  # fmt: skip
@@ -395,6 +412,16 @@ def run(args: argparse.Namespace) -> int:
     if args.runs_json:
         write_json(args.runs_json, {"runs": [asdict(r) for r in results]})
     return 0
+
+
+def _bounds(worlds: list[str], results: list[RunResult]) -> dict[str, float]:
+    """explore-bound's time [s] for every world that has runs (the route a robot knowing the plan drives)."""
+    from homing.benchmarks.explore_bound import covering_route
+
+    labels = {world_label(w): w for w in worlds}
+    specs = {label: labels.get(label, label) for label in {r.world for r in results}
+             if label in labels or label == "lab" or ":" in label}  # a saved run's plan named by its label alone
+    return {label: covering_route(spec).time for label, spec in sorted(specs.items())}
 
 
 def load_runs(paths: list[str], strategies: list[str], worlds: list[str] | None) -> list[RunResult]:
@@ -419,4 +446,6 @@ def _job_label(job: tuple[Any, ...]) -> str:
 
 
 def _describe(r: RunResult) -> str:
-    return f"{r.world} {r.strategy} seed {r.seed}: {r.coverage:.0%} in {r.explore_time:.0f} s ({r.rtf:.0f}×)"
+    unseen = f", {r.unseen_place:.1f} m² unseen" if r.unseen_place >= FALSE_DONE_AREA else ""
+    return (f"{r.world} {r.strategy} seed {r.seed}: {r.coverage:.0%} in {r.explore_time:.0f} s, t95 {r.t95:.0f} s"
+            f"{unseen}{' (said done)' if r.done else ''} ({r.rtf:.0f}×)")

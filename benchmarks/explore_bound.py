@@ -5,10 +5,12 @@ floor plan beforehand and drives the shortest route from which its lidar
 sees the target share of the place. This computes such a route on the true
 map, for a world of ``homing bench explore``:
 
-1. the cells to see: the free cells reachable from the start (the coverage
-   figure's denominator, :func:`homing.mapping.evaluate.reachable_free`);
-2. viewpoints: cells where the footprint fits, on a ``SPACING`` lattice, and
-   the start; each sees the free cells its lidar's rays reach (``RAYS`` rays,
+1. the cells to see: the navigable area from the start (the coverage
+   figure's denominator, :func:`homing.mapping.evaluate.navigable_truth`:
+   the costmap's rule for where the footprint fits; space behind passages
+   narrower than the robot is reported beside it, not counted);
+2. viewpoints: cells of that area where the robot's centre fits, on a
+   ``SPACING`` lattice, and the start; each sees the free cells its lidar's rays reach (``RAYS`` rays,
    ``LIDAR_RANGE``, stopping at the first wall);
 3. a greedy set cover (the start first, then the viewpoint seeing the most
    cells not yet seen) until ``TARGET`` of the cells are seen;
@@ -29,10 +31,8 @@ import heapq
 import math
 from dataclasses import asdict, dataclass
 
-import cv2
 import numpy as np
-from homing.mapping.distance import distance_cells
-from homing.robot.turtlebot import FOOTPRINT_RADIUS, NAV_MAX_V
+from homing.robot.turtlebot import NAV_MAX_V
 
 from homing.map_server import FREE, MapData
 
@@ -45,13 +45,16 @@ CHUNK = 64  # viewpoints ray-cast at once (memory)
 
 @dataclass(frozen=True)
 class Bound:
-    """A covering route: the reachable free area [m²], viewpoints on it, its length [m] and time [s]."""
+    """A covering route: the navigable area [m²], viewpoints on it, its length [m] and time [s]; the free area
+    [m²] behind passages narrower than the robot and the widest of those passages [m] (0: none)."""
 
     world: str
     area: float
     viewpoints: int
     length: float
     time: float
+    blocked_area: float = 0.0
+    blocked_width: float = 0.0
 
 
 def visible_cells(free: np.ndarray, resolution: float, cells: np.ndarray) -> list[np.ndarray]:
@@ -107,27 +110,28 @@ def covering_route(world_spec: str, target: float = TARGET) -> Bound:
 
     world = load_world(world_spec)
     area, viewpoints, length = route(world.map, (world.start.x, world.start.y), target)
-    return Bound(world_spec, area, viewpoints, length, length / NAV_MAX_V)
+    from homing.mapping.evaluate import navigable_truth
+
+    blocked = navigable_truth(world.map, (world.start.x, world.start.y)).blocked
+    return Bound(world_spec, area, viewpoints, length, length / NAV_MAX_V, sum(b.area for b in blocked),
+                 max((b.width for b in blocked), default=0.0))
 
 
 def route(truth: MapData, start: tuple[float, float], target: float = TARGET) -> tuple[float, int, float]:
-    """The reachable free area [m²] of ``truth`` from ``start`` (x, y) [m], the number of viewpoints of the
-    covering route (module doc) and its length [m]."""
-    from homing.mapping.evaluate import reachable_free
+    """The navigable area [m²] of ``truth`` from ``start`` (x, y) [m], the number of viewpoints of the covering
+    route (module doc) and its length [m]."""
+    from homing.mapping.evaluate import navigable_truth
     from homing.mapping.frontier_tour import open_tour, path_distances, tour_length
 
     res = truth.resolution
-    reach = reachable_free(truth, start)
+    nav = navigable_truth(truth, start)
+    reach, fits = nav.mask, nav.region.copy()
     free = truth.grid == FREE
-    clear = distance_cells(free) * res
-    fits = reach & (clear >= FOOTPRINT_RADIUS)
-    # The start, moved onto the nearest cell where the footprint fits; viewpoints where it fits, joined to it.
+    # The start, moved onto the nearest cell where the footprint fits; viewpoints where it fits.
     fr, fc = np.nonzero(fits)
     s_r, s_c = (start[1] - truth.origin[1]) / res, (start[0] - truth.origin[0]) / res
     j = int(np.argmin((fr - s_r) ** 2 + (fc - s_c) ** 2))
     s_cell = (int(fr[j]), int(fc[j]))
-    _, labels = cv2.connectedComponents(fits.astype(np.uint8), connectivity=8)
-    fits &= labels == labels[s_cell]
     step = max(1, int(round(SPACING / res)))
     lattice = np.zeros_like(fits)
     lattice[::step, ::step] = True
@@ -160,11 +164,13 @@ def run(args: argparse.Namespace) -> int:
         check_spec(w)
     bounds = [covering_route(w) for w in worlds]
     print_table(
-        f"Covering routes: the lidar ({LIDAR_RANGE:g} m) sees {TARGET:.0%} of the reachable free area; "
-        "time at the navigation speed limit",
-        ["world", "kind", "area m²", "viewpoints", "route m", "time s"],
-        [[world_label(b.world), plan_kind(world_label(b.world)), b.area, b.viewpoints, b.length, b.time]
-         for b in bounds],
+        f"Covering routes: the lidar ({LIDAR_RANGE:g} m) sees {TARGET:.0%} of the navigable area; "
+        "time at the navigation speed limit; 'behind' is the free area only passages narrower than the robot "
+        "lead to (the widest of them)",
+        ["world", "kind", "area m²", "behind m²", "viewpoints", "route m", "time s"],
+        [[world_label(b.world), plan_kind(world_label(b.world)), b.area,
+          f"{b.blocked_area:.1f} ({b.blocked_width:.2f} m)" if b.blocked_area else "0", b.viewpoints, b.length,
+          b.time] for b in bounds],
     )
     write_json(args.json, {world_label(b.world): asdict(b) for b in bounds})
     return 0

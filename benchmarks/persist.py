@@ -98,10 +98,13 @@ class Life:
         self.next_sample = SAMPLE
         self.next_progress = 0.0
         self.states: dict[str, list[float]] = {}  # mission state -> [simulated s, wall s] spent in it
+        self.coverage: list[tuple[float, float]] = []  # (time, coverage of the navigable area) at each dock
+        self.errors: dict[str, list[float]] = {}  # why the robot entered Error -> [times, simulated s in Error]
+        self._error_reason: str | None = None  # the reason of the Error stretch under way
         self._last: tuple[float, float, str] | None = None  # (sim time, wall time, state) at the last call
 
     def __call__(self, runner: Any) -> None:
-        from homing.mapping.evaluate import aligned_agreement, cell_agreement
+        from homing.mapping.evaluate import aligned_agreement, cell_agreement, coverage
 
         obs, now = runner.observation, runner.now
         wall, state = time.perf_counter(), str(runner.read("/mission/state") or "Starting")
@@ -109,6 +112,13 @@ class Life:
             spent = self.states.setdefault(self._last[2], [0.0, 0.0])
             spent[0] += now - self._last[0]
             spent[1] += wall - self._last[1]
+            if self._error_reason is not None:
+                self.errors[self._error_reason][1] += now - self._last[0]
+        if state == "Error" and (self._last is None or self._last[2] != "Error"):
+            self._error_reason = error_cause(runner)
+            self.errors.setdefault(self._error_reason, [0.0, 0.0])[0] += 1
+        elif state != "Error":
+            self._error_reason = None
         if obs is not None:
             self.lowest["base"] = min(self.lowest["base"], obs.battery.percent)
             if obs.computer_battery is not None:
@@ -123,6 +133,8 @@ class Life:
             self.agreement.append((now, cell_agreement(grid, truth, self.world.dock_pose)))
             self.aligned.append((now, aligned_agreement(grid, truth, self.world.dock_pose)[0]))
             self.area = float((grid.data == 0).sum()) * grid.resolution**2
+            start = (self.world.start.x, self.world.start.y)  # the building's navigable area, as bench explore
+            self.coverage.append((now, coverage(grid, self.world.map, start, self.world.dock_pose).coverage))
         if now - self.last_dock > STUCK * 3600.0 and not obs.battery.on_dock:
             self.stuck = f"no dock for {STUCK:g} h"
         if now >= self.next_sample:
@@ -135,6 +147,28 @@ class Life:
             runner.request_stop()
         # This benchmark's own work (the agreement with the truth at a dock, RSS samples) is no mission state's.
         self._last = (now, time.perf_counter(), state)
+
+
+def error_cause(runner: Any) -> str:
+    """Which Error is running (named for the state it recovers) and the typed failure that sent the robot there:
+    the failure reason of the leaf that failed beside it (its recovery node's child)."""
+    from py_trees.common import Status
+
+    error = next((n for n in runner.mission.root.iterate()
+                  if n.status == Status.RUNNING and n.name.endswith("Error")), None)
+    if error is None:
+        return "Error: no Error node running"
+    node = error
+    while node.parent is not None:
+        for sibling in node.parent.children:
+            if sibling is node:
+                continue
+            failed = next((n for n in sibling.iterate()
+                           if n.status == Status.FAILURE and getattr(n, "failure_reason", None)), None)
+            if failed is not None:
+                return f"{error.name}: {failed.name} {failed.failure_reason}"
+        node = node.parent
+    return f"{error.name}: no typed reason"
 
 
 def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes: bool,
@@ -222,13 +256,14 @@ def run(args: argparse.Namespace) -> int:
         # growth, the max the peak, the last sample against the first hour's (the JSON key) neither reliably.
         held = [m for t, m in rss if lo <= t < hi and t >= 3600.0]
         days.append([d + 1, sum(1 for t, _ in life.agreement if lo <= t < hi),
+                     next((c for t, c in reversed(life.coverage) if t < hi), math.nan),
                      min((a for t, a in life.agreement if lo <= t < hi), default=math.nan),
                      min((a for t, a in life.aligned if lo <= t < hi), default=math.nan),
                      float(np.median(held)) if held else math.nan,
                      max((m for t, m in rss if lo <= t < hi), default=math.nan)])
     print_table(f"bench persist: {args.world}, {args.days:g} day(s){cut}, seed {args.seed}, {out['changes']} world "
-                f"changes, {out['faults']} faults", ["day", "dock cycles", "agreement min", "aligned min",
-                                                  "RSS MB median", "RSS MB max"],
+                f"changes, {out['faults']} faults; coverage of the navigable area at the day's last dock",
+                ["day", "dock cycles", "coverage", "agreement min", "aligned min", "RSS MB median", "RSS MB max"],
                 days)
     summary = [["dock cycles", life.cycles], ["interventions", len(out["interventions"])],
                ["lowest battery, base %", life.lowest["base"]], ["lowest battery, computer %", life.lowest["computer"]],
@@ -245,6 +280,11 @@ def run(args: argparse.Namespace) -> int:
     print_table("where the wall time went, by mission state", ["state", "% of sim time", "% of wall", "wall ms per sim s"],
                 [[k, 100 * v[0] / max(sim, 1e-9), 100 * v[1] / max(wall, 1e-9), 1e3 * v[1] / max(v[0], 1e-9)]
                  for k, v in states])
+    error_s = sum(v[1] for v in life.errors.values())
+    print_table(f"why it entered Error ({100 * error_s / max(sim, 1e-9):.2f} % of the simulated time)",
+                ["reason", "times", "simulated s", "% of sim time"],
+                [[k, int(v[0]), v[1], 100 * v[1] / max(sim, 1e-9)]
+                 for k, v in sorted(life.errors.items(), key=lambda kv: -kv[1][1])] or [["none", 0, 0.0, 0.0]])
     if args.plot:
         _plot(args.plot, rss)
     write_json(args.json, {
@@ -257,7 +297,10 @@ def run(args: argparse.Namespace) -> int:
         "map_agreement_aligned": life.aligned,
         "area_mapped_m2": life.area, "timing_s": out["timing"], "days": args.days, "world": args.world,
         "interrupted": out["interrupted"], "simulated_days": sim / DAY,
-        "seed": args.seed, "rss_median_by_day_mb": [row[4] for row in days], "states_s": {k: {"sim": v[0], "wall": v[1]} for k, v in life.states.items()},
+        "seed": args.seed, "rss_median_by_day_mb": [row[5] for row in days],
+        "coverage_navigable": life.coverage, "coverage_navigable_by_day": [row[2] for row in days],
+        "error_pct": 100 * error_s / max(sim, 1e-9),
+        "error_reasons": {k: {"times": int(v[0]), "sim_s": v[1]} for k, v in life.errors.items()}, "states_s": {k: {"sim": v[0], "wall": v[1]} for k, v in life.states.items()},
     })
     return exit_status(received()) if out["interrupted"] else 0
 

@@ -1,4 +1,4 @@
-"""Grid accuracy against a true map: cell agreement on observed cells, coverage of the reachable free area (evaluation code only).
+"""Grid accuracy against a true map: cell agreement on observed cells, coverage of the navigable area (evaluation code only).
 
 The robot's ``map`` frame is its ``odom`` frame at start, so comparing needs
 ``world_from_map``: the true pose of the map frame in the true map's frame
@@ -16,6 +16,7 @@ from typing import Any
 import cv2
 import numpy as np
 from homing.mapping.grid import OccupancyGrid
+from homing.mapping.navigable import Navigable, navigable
 from homing.robot import Pose2
 
 from homing.map_server import FREE, UNKNOWN, MapData
@@ -141,9 +142,50 @@ def reachable_free(truth: MapData, start_xy: tuple[float, float]) -> np.ndarray:
     return labels == lab
 
 
+_NAVIGABLE: dict[str, Any] = {}  # navigable_truth's last answer: its key, the truth grid it holds, the answer
+
+
+def navigable_truth(truth: MapData, start_xy: tuple[float, float]) -> Navigable:
+    """The navigable area of the true map from ``start_xy`` [m, truth frame] (:mod:`homing.mapping.navigable`:
+    the costmap's rule), and the places behind passages narrower than the robot. The last answer is kept (a
+    run asks every few seconds)."""
+    key = (truth.grid.shape, truth.resolution, tuple(truth.origin[:2]), tuple(start_xy))
+    if _NAVIGABLE.get("key") != key or _NAVIGABLE.get("truth") is not truth.grid:
+        _NAVIGABLE.update(key=key, truth=truth.grid, value=navigable(
+            truth.grid == FREE, truth.resolution, (truth.origin[0], truth.origin[1]), start_xy))
+    return _NAVIGABLE["value"]
+
+
+def _under_navigable(grid: OccupancyGrid, truth: MapData, start_xy: tuple[float, float],
+                     world_from_map: Pose2 | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The truth's navigable cells (rows, cols) and the grid's value under each one's centre (UNKNOWN off it)."""
+    world_from_map = world_from_map or Pose2()
+    rows, cols = np.nonzero(navigable_truth(truth, start_xy).mask)
+    x = truth.origin[0] + (cols + 0.5) * truth.resolution
+    y = truth.origin[1] + (rows + 0.5) * truth.resolution
+    pts = world_from_map.inverse().transform_points(np.column_stack([x, y]))
+    gr, gc = grid.world_to_cell(pts[:, 0], pts[:, 1])
+    ok = grid.in_bounds(gr, gc)
+    value = np.full(len(rows), UNKNOWN, dtype=grid.data.dtype)
+    value[ok] = grid.data[gr[ok], gc[ok]]
+    return rows, cols, value
+
+
+def unseen_places(grid: OccupancyGrid, truth: MapData, start_xy: tuple[float, float],
+                  world_from_map: Pose2 | None = None, min_area: float = 1.0) -> list[float]:
+    """Areas [m²], largest first, of the 8-connected pieces of the navigable area the grid has not observed
+    (unknown under their centres) that are at least ``min_area`` [m²]: a place left unseen, not a corner."""
+    rows, cols, value = _under_navigable(grid, truth, start_xy, world_from_map)
+    unseen = np.zeros(truth.grid.shape, np.uint8)
+    unseen[rows, cols] = value == UNKNOWN
+    _, _, stats, _ = cv2.connectedComponentsWithStats(unseen, connectivity=8)
+    areas = stats[1:, cv2.CC_STAT_AREA].astype(float) * truth.resolution**2
+    return sorted((float(a) for a in areas if a >= min_area), reverse=True)
+
+
 @dataclass(frozen=True)
 class Coverage:
-    """Explored area [m²] (grid free cells), the fraction of the truth's reachable free area the grid has observed
+    """Explored area [m²] (grid free cells), the fraction of the truth's navigable area the grid has observed
     (``coverage``) and has observed as free (``free_coverage``), and cell agreement on observed cells."""
 
     area: float
@@ -153,7 +195,7 @@ class Coverage:
 
 
 def coverage(grid: OccupancyGrid, truth: MapData, start_xy: tuple[float, float], world_from_map: Pose2 | None = None) -> Coverage:
-    """How much of the truth's free area reachable from ``start_xy`` the grid has observed.
+    """How much of the truth's navigable area from ``start_xy`` (:func:`navigable_truth`) the grid has observed.
 
     Computed on the truth's cells: a truth cell counts as covered if the grid
     cell under its centre is known (free or occupied). Exploration is about
@@ -163,18 +205,9 @@ def coverage(grid: OccupancyGrid, truth: MapData, start_xy: tuple[float, float],
     room, a 2 cm drift along a 20 m wall) to the exploration strategy:
     ``free_coverage`` keeps that stricter figure for reference.
     """
-    world_from_map = world_from_map or Pose2()
-    reach = reachable_free(truth, start_xy)
-    rows, cols = np.nonzero(reach)
-    x = truth.origin[0] + (cols + 0.5) * truth.resolution
-    y = truth.origin[1] + (rows + 0.5) * truth.resolution
-    pts = world_from_map.inverse().transform_points(np.column_stack([x, y]))
-    gr, gc = grid.world_to_cell(pts[:, 0], pts[:, 1])
-    ok = grid.in_bounds(gr, gc)
-    value = np.full(len(rows), UNKNOWN, dtype=grid.data.dtype)
-    value[ok] = grid.data[gr[ok], gc[ok]]
+    rows, _, value = _under_navigable(grid, truth, start_xy, world_from_map)
     area = float((grid.data == FREE).sum()) * grid.resolution**2
     if not len(rows):
-        return Coverage(area, float("nan"), cell_agreement(grid, truth, world_from_map), float("nan"))
+        return Coverage(area, float("nan"), cell_agreement(grid, truth, world_from_map or Pose2()), float("nan"))
     return Coverage(area, float((value != UNKNOWN).mean()), cell_agreement(grid, truth, world_from_map),
                     float((value == FREE).mean()))

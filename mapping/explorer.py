@@ -21,9 +21,13 @@ Shared by every strategy, so that they differ only in their rule:
 
 "Done" means done (:mod:`homing.mapping.reachable`): when the strategy finds
 no goal, the map itself is asked which frontiers the robot could reach with
-its footprint from where it is, whatever the costmap says. None left (but
-those behind gaps narrower than the robot and those blacklisted): done, with
-the robot's coverage estimate and the frontiers given up and why. A site the
+its footprint from where it is, whatever the costmap says. None left but
+those behind gaps narrower than the robot: done, with the robot's coverage
+estimate and the gaps; the same when the others were given up after the
+robot stood at them and looked (``not_cleared``: the lidar cannot see in).
+Frontiers given up before it looked (no progress, unreachable, cut off…):
+done *incomplete* (``ExploreStep.gave_up`` > 0) — the caller reports it as
+such, not as explored, and may :meth:`Explorer.forgive` them to try again. A site the
 costmap still reaches but the strategy declined (too small for its rule) is
 visited anyway: the robot stands against it, or for a door seen only at a
 grazing angle (a peek site) within ``PEEK`` of it, to look through. A site
@@ -69,6 +73,7 @@ PROGRESS_STEP = 0.10  # [m] the travel distance must shrink this much to count a
 BLACKLIST_RADIUS = 0.5  # [m]
 EXPLORED_RADIUS = 0.35  # [m] a goal with no unknown cell this close has been seen
 MAX_ARRIVALS = 2  # a place reached this often with its frontier still there is blacklisted (not_cleared)
+LOOKED_AT = "not_cleared"  # the one reason a place is given up after the robot stood at it and looked
 CUT_OFF_TRIES = 4  # failures in a row on frontiers the costmap cuts off before they are given up (one recovery round)
 
 
@@ -82,6 +87,7 @@ class ExploreStep:
     choice: GoalChoice | None
     stuck: str | None = None  # frontiers the robot could reach are cut off: a typed reason for the recoveries
     report: FrontierReport | None = None  # what the map said was left, when it was asked
+    gave_up: int = 0  # done, but incomplete: reachable frontiers given up before the robot looked at them
 
 
 class Explorer:
@@ -111,6 +117,7 @@ class Explorer:
         self.cut_offs = 0  # "no goal" verdicts in a row with frontiers the costmap cuts off
         self._declined: FrontierSite | None = None  # the site the current goal visits though the strategy declined it
         self.goals_chosen = 0
+        self.retries = 0  # times the places given up were tried again (forgive)
         self._best_distance = math.inf
         self._last_progress = 0.0
         self._last_choice = -math.inf
@@ -135,6 +142,18 @@ class Explorer:
             p = xy[int(np.argmax(todo))]
             self._blacklist(float(p[0]), float(p[1]), reason)
             todo &= np.hypot(xy[:, 0] - p[0], xy[:, 1] - p[1]) > 0.9 * self.blacklist_radius
+
+    def forgive(self) -> int:
+        """Try again every place given up before the robot looked at it (a later round, after the costmap was
+        cleared): they leave the blacklist; returns how many. Places looked at from where they are
+        (``not_cleared``) stay given up, and gaps narrower than the robot are measured on the map each time."""
+        keep = [i for i, why in enumerate(self.blacklist_reasons) if why == LOOKED_AT]
+        n = len(self.blacklist) - len(keep)
+        self.blacklist = [self.blacklist[i] for i in keep]
+        self.blacklist_reasons = [self.blacklist_reasons[i] for i in keep]
+        self.cut_offs, self.goal, self.choice, self._declined = 0, None, None, None
+        self.retries += 1
+        return n
 
     def given_up(self) -> tuple[GivenUp, ...]:
         """The places given up so far (blacklisted), with why; narrow gaps are in :attr:`report`."""
@@ -196,7 +215,10 @@ class Explorer:
         report = report.given_up(len(open_sites))
         self.report = report
         if not open_sites or getattr(self.strategy, "ends_without_goal", False):
-            return ExploreStep(None, True, True, None, report=report)
+            looked = [p for p, why in zip(self.blacklist, self.blacklist_reasons, strict=True) if why == LOOKED_AT]
+            unlooked = sum(site_blacklisted(s, grid, self.blacklist, self.blacklist_radius)
+                           and not site_blacklisted(s, grid, looked, self.blacklist_radius) for s in report.reachable)
+            return ExploreStep(None, True, True, None, report=report, gave_up=int(unlooked))
         ctx = self._context(grid, pose, distance)
         # Stand where the footprint touches the site (a peek site: within PEEK of it, to look).
         radius = {False: self.robot_radius, True: max(self.robot_radius, PEEK - grid.resolution)}

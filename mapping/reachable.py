@@ -7,8 +7,9 @@ goal would call the building explored (explore_lite's best-known failure,
 m-explore #26, #68). This module asks the map alone:
 
 1. where the robot's centre fits: known-free cells farther than the
-   footprint's radius from every wall cell (unknown space does not block:
-   the robot may stand beside it);
+   inscribed radius from every wall cell (:mod:`homing.mapping.navigable`,
+   the costmap's own rule; unknown space does not block: the robot may
+   stand beside it);
 2. the part of it the robot is in: the 8-connected components of (1) within
    ``SEED_RADIUS`` of the robot (so a robot standing in inflation, or
    slightly mislocalised, still counts as in the room it is in), else the
@@ -53,9 +54,9 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from homing.mapping.distance import distance_cells
 from homing.mapping.frontier import OCCUPIED_AT
 from homing.mapping.grid import OccupancyGrid
+from homing.mapping.navigable import centre_fits, disc
 from homing.mapping.strategies import VIEW_RAYS, visible_unknown
 from homing.robot.turtlebot import FOOTPRINT_RADIUS
 
@@ -123,18 +124,10 @@ class FrontierReport:
         return text
 
 
-def _disc(radius_cells: float) -> np.ndarray:
-    k = max(0, int(math.ceil(radius_cells - 1e-9)))
-    yy, xx = np.mgrid[-k : k + 1, -k : k + 1]
-    return (xx * xx + yy * yy <= radius_cells * radius_cells + 1e-9).astype(np.uint8)
-
-
 def clear_of_walls(grid: np.ndarray, resolution: float, robot_radius: float = FOOTPRINT_RADIUS) -> np.ndarray:
-    """(H, W) bool: cells whose centre is farther than ``robot_radius`` [m] from every wall cell (any state)."""
-    occ = (grid >= OCCUPIED_AT).astype(np.uint8)
-    if not occ.any():
-        return np.ones(grid.shape, bool)
-    return distance_cells(1 - occ) * resolution > robot_radius
+    """(H, W) bool: cells where the robot's centre fits between the walls (any state) of ``grid``: the rule the
+    costmap and the benchmarks use (:func:`homing.mapping.navigable.centre_fits`); unknown cells do not block."""
+    return centre_fits(grid >= OCCUPIED_AT, resolution, robot_radius)
 
 
 def robot_region(fits: np.ndarray, robot_cell: tuple[float, float], resolution: float) -> np.ndarray:
@@ -196,7 +189,7 @@ def frontier_report(grid: OccupancyGrid, robot_xy: tuple[float, float],
     c = (robot_xy[0] - grid.origin[0]) / res - 0.5
     clear = clear_of_walls(g, res, robot_radius)
     region = robot_region((g == FREE) & clear, (r, c), res)
-    reach_disc = _disc(robot_radius / res + 1.0)
+    reach_disc = disc(robot_radius / res + 1.0)
     unknown = _open_unknown(g, res)
     beside_unknown = cv2.dilate(unknown.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     reach_front = region & beside_unknown

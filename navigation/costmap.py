@@ -35,6 +35,7 @@ from typing import Any
 import cv2
 import numpy as np
 from homing.mapping.distance import distance_cells
+from homing.mapping.navigable import inscribed_radius
 from homing.navigation.layers import (
     BumpMarks,
     Keepout,
@@ -146,7 +147,9 @@ class Costmap:
     def inscribed_radius(self) -> float:
         """Centre distance [m] to a lethal cell centre under which the robot touches it."""
         pad = self.params.footprint_padding
-        return self.params.footprint_radius + (0.5 * self.resolution if pad is None else pad)
+        if pad is None:  # the one rule of homing.mapping.navigable
+            return inscribed_radius(self.resolution, self.params.footprint_radius)
+        return self.params.footprint_radius + pad
 
     def world_to_cell(self, xy: np.ndarray) -> np.ndarray:
         """(N, 2) map-frame points [m] → (N, 2) int (row, col), possibly outside the grid."""

@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from homing.mapping.evaluate import aligned_agreement, cell_agreement, coverage, reachable_free
+from homing.mapping.evaluate import (
+    aligned_agreement,
+    cell_agreement,
+    coverage,
+    navigable_truth,
+    reachable_free,
+)
 from homing.mapping.grid import OccupancyGrid
 from homing.robot import Pose2
 
@@ -12,11 +18,11 @@ from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData
 
 
 def two_rooms() -> MapData:
-    """4 m × 2 m at 0.1 m: two 2 m × 2 m rooms joined by a door, plus a sealed closet (not reachable)."""
+    """4 m × 2 m at 0.1 m: two 2 m × 2 m rooms joined by a 1 m door, plus a sealed closet (not reachable)."""
     g = np.full((20, 40), FREE, np.int8)
     g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = OCCUPIED
     g[:, 20] = OCCUPIED
-    g[8:12, 20] = FREE  # the door
+    g[5:15, 20] = FREE  # the door
     g[2:6, 30:36] = OCCUPIED  # closet walls
     g[3:5, 31:35] = FREE  # ... sealed inside
     return MapData(g, 0.1, (0.0, 0.0, 0.0))
@@ -28,6 +34,11 @@ def test_reachable_free_excludes_the_sealed_closet() -> None:
     assert not reach[3:5, 31:35].any()
     assert reach[10, 20] and reach[10, 30]
     assert reach.sum() == (truth.grid == FREE).sum() - 8
+    # The navigable area: the free cells the footprint sweeps; every free cell but the closet's and the
+    # rooms' corners, which no 0.19 m disc between the walls reaches.
+    nav = navigable_truth(truth, (1.0, 1.0))
+    assert nav.mask[10, 20] and nav.mask[10, 30] and not nav.mask[3:5, 31:35].any() and not nav.blocked
+    assert not nav.mask[1, 1] and 0.9 * reach.sum() < nav.mask.sum() < reach.sum()
 
 
 def grid_from(values: np.ndarray, resolution: float = 0.1) -> OccupancyGrid:
@@ -38,7 +49,7 @@ def test_coverage_counts_observed_cells_and_free_coverage_only_free_ones() -> No
     truth = two_rooms()
     seen = np.full(truth.grid.shape, UNKNOWN, np.int8)
     seen[:, :21] = truth.grid[:, :21]  # the left room and the door's wall column
-    reach = reachable_free(truth, (1.0, 1.0))
+    reach = navigable_truth(truth, (1.0, 1.0)).mask  # what coverage counts
     left = reach[:, :21].sum() / reach.sum()
     cov = coverage(grid_from(seen), truth, (1.0, 1.0))
     assert cov.coverage == pytest.approx(left)
@@ -61,7 +72,7 @@ def test_coverage_follows_the_grid_as_it_moves_and_grows() -> None:
     # Which truth cell lies under each grid cell is kept between calls (a run samples coverage every few
     # seconds): two grids of the same shape at different origins, then a grown one, must each read their own.
     truth = two_rooms()
-    reach = reachable_free(truth, (1.0, 1.0))
+    reach = navigable_truth(truth, (1.0, 1.0)).mask  # what coverage counts
     halves = []
     for c0 in (20, 0):
         g = OccupancyGrid(0.1, (c0 * 0.1, 0.0), (20, 20), grow=False)
@@ -89,7 +100,7 @@ def test_coverage_uses_the_map_frame_pose() -> None:
     values = truth.grid[tr, tc].reshape(20, 40)
     values[(world[:, 0] > 2.1).reshape(20, 40)] = UNKNOWN  # only the left room seen
     g2 = grid_from(values)
-    reach = reachable_free(truth, (1.0, 1.0))
+    reach = navigable_truth(truth, (1.0, 1.0)).mask  # what coverage counts
     left = reach[:, :21].sum() / reach.sum()
     assert coverage(g2, truth, (1.0, 1.0), world_from_map).coverage == pytest.approx(left)
     # Read without the transform, what was seen lands on the right room (and the closet's walls).

@@ -151,6 +151,35 @@ def test_explore_fails_with_the_reason_when_the_robot_cannot_progress() -> None:
     assert len(nav.goals) == 2 and nav.goals[0].distance_to(nav.goals[1]) > 3.0
 
 
+def test_explore_that_gave_up_reachable_frontiers_ends_incomplete_and_tries_them_again_next_start() -> None:
+    grid = _two_openings()
+    nav = _FailingNavigator(grid, NoPathFound("no free path"))
+    bb = _board(grid, nav, Pose2(1.0, 1.5, 0.0))
+    robot = _Robot()
+    leaf = Explore("Explore", strategy="nearest")
+    leaf.setup(robot=robot, seed=0)
+    reasons = []
+    for _ in range(200):  # started again after each failure, as a recovery node does
+        if _tick(leaf, robot) == Status.FAILURE:
+            reasons.append(leaf.failure_reason)
+            if leaf.failure_reason == "incomplete":
+                break
+    # Every goal fails as the planner's fault; the places the strategy no longer offers are cut off on the
+    # costmap for a round of recoveries, then given up too. The map still says the robot could reach them:
+    # that is not "explored" but FAILURE incomplete, with what was given up and why.
+    assert reasons and reasons[-1] == "incomplete" and "incomplete" not in reasons[:-1], reasons
+    assert bb.get("/explore/explored") is False
+    assert "no_path" in leaf.feedback_message and "2 reachable frontier" not in leaf.feedback_message
+    report = leaf.end_report()
+    assert report is not None and report.startswith("incomplete") and "given up" in report
+    tried = len(nav.goals)
+    assert tried >= 2
+    # Started again (a recovery round, the persistent mission's next round): every place is tried again.
+    assert _tick(leaf, robot) == Status.RUNNING
+    assert len(nav.goals) == tried + 1 and leaf.explorer.retries == 1
+    assert "tried again 1×" in (leaf.end_report() or "")
+
+
 def test_explore_succeeds_when_no_frontier_is_left_and_the_condition_agrees() -> None:
     g = np.full((100, 120), UNKNOWN, dtype=np.int8)
     g[20:80, 20:100] = FREE

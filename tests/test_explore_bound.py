@@ -39,6 +39,6 @@ def test_the_route_along_a_corridor_goes_as_far_as_the_lidar_needs_and_no_farthe
     g[1:15, 1:201] = FREE
     truth = MapData(g, RES, (0.0, 0.0, 0.0))
     area, viewpoints, length = route(truth, (0.5, 0.8))
-    assert area == pytest.approx(20.0 * 1.4)
+    assert area == pytest.approx(20.0 * 1.4, abs=0.1)  # the footprint sweeps all but the four corners
     assert viewpoints >= 2
     assert 20.0 - 0.05 * 20.0 - LIDAR_RANGE - 0.5 - 0.5 <= length <= 20.0

@@ -49,6 +49,22 @@ def test_explores_three_rooms_without_touching_anything(tmp_path: Path, strategy
 
 
 @pytest.mark.slow
+def test_a_log_without_the_view_ends_with_the_explorers_end_report(tmp_path: Path) -> None:
+    """``homing run --no-view`` ends, as the live view does, with how exploration ended: explored, the coverage
+    estimate and the gap given up as narrower than the robot."""
+    import subprocess
+    import sys
+
+    plan = three_rooms(tmp_path, second_door=(0.3, 0.55))
+    out = subprocess.run([sys.executable, "-m", "homing.missions.cli", "run", "explore", "--world", str(plan),
+                          "--seed", "3", "--until", "8 min", "--no-view"], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    last = out.stdout.splitlines()[-1]
+    assert last.startswith("Explore: explored: coverage estimate "), last
+    assert "0 reachable frontier(s) left" in last and "narrower_than_robot" in last, last
+
+
+@pytest.mark.slow
 def test_a_gap_narrower_than_the_robot_ends_exploration_with_the_gap_reported_and_the_rest_covered(
         tmp_path: Path) -> None:
     """The third room is behind a 0.25 m gap (the robot is 0.35 m wide): exploration ends on its own, says

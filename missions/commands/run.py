@@ -309,6 +309,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"stopped: {result.reason}{why} at t={result.time:.2f} s after {result.ticks} ticks "
           f"({result.rtf:.1f}× real time)")  # two lines within 80 columns
     print(f"final command v={cmd.v:.3f} m/s ω={cmd.omega:.3f} rad/s (robot stopped); root {result.root_status.value}")
+    for node in mission.root.iterate():
+        report = getattr(node, "end_report", None)
+        line = report() if callable(report) else None
+        if line:
+            print(f"{node.name}: {line}")  # the view shows it live; a log ends with it
     if run_dir is not None:
         print(f"run directory: {run_dir.path} ({runner.snapshots} snapshots saved this run"
               f"{f', resumed at t={snap.time:.0f} s after {snap.cycles} cycles' if snap is not None else ''})")

@@ -60,7 +60,15 @@ def _show(args: argparse.Namespace) -> int:
     atomic_write(args.out, png)
     print(f"{args.out}: {world.name}, {len(world.tags)} tags, dock at "
           f"({world.dock.station.x:.2f}, {world.dock.station.y:.2f})")
+    print(f"{world.name}: {navigable_area(world).summary()}")
     return 0
+
+
+def navigable_area(world):  # noqa: ANN001, ANN201 - homing.sim.world.World → homing.mapping.navigable.Navigable
+    """The world's navigable area from its start (the rule the costmap and bench explore use)."""
+    from homing.mapping.evaluate import navigable_truth
+
+    return navigable_truth(world.map, (world.start.x, world.start.y))
 
 
 def _dock(args: argparse.Namespace) -> int:
@@ -169,10 +177,16 @@ def draw_world(world, dpi: int = 120) -> bytes:  # noqa: ANN001 - homing.sim.wor
     extent = (ox, ox + walls.shape[1] * k * m.resolution, oy, oy + walls.shape[0] * k * m.resolution)
     fig, ax = plt.subplots(figsize=(FIGURE_INCHES, FIGURE_INCHES))
     ax.imshow(img, cmap="gray", origin="lower", extent=extent, vmin=0, vmax=255, interpolation="nearest")
-    reach = world.reachable_free()
+    nav = navigable_area(world)
+    reach = nav.mask
     overlay = np.zeros(walls.shape + (4,), np.uint8)
     overlay[block_any(reach, k) & ~walls] = (140, 204, 255, 64)
+    left_out = block_any(world.reachable_free() & ~reach, k) & ~walls
+    overlay[left_out] = (255, 120, 120, 80)
     ax.imshow(overlay, origin="lower", extent=extent, interpolation="nearest")
+    for b in nav.blocked:
+        ax.text(b.x, b.y, f"{b.area:.0f} m² behind {b.width:.2f} m", ha="center", va="center", fontsize=7,
+                color="tab:red")
 
     for p in world.patches:
         ax.add_patch(Rectangle((p.x0, p.y0), p.x1 - p.x0, p.y1 - p.y0, color="tab:purple", alpha=0.25, lw=0))
@@ -209,7 +223,8 @@ def draw_world(world, dpi: int = 120) -> bytes:  # noqa: ANN001 - homing.sim.wor
 
     area = float(reach.sum()) * m.resolution ** 2
     ax.set_title(f"{world.name}: {len(world.tags)} tags (dock tag {world.dock_tag_id}), "
-                 f"reachable free area {area:.1f} m²")
+                 f"navigable area {area:.1f} m²" + (f" ({nav.blocked_area:.1f} m² behind narrow passages)"
+                                                     if nav.blocked else ""))
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     known = grid != UNKNOWN

@@ -1,0 +1,159 @@
+"""Where the robot can go: one rule for the costmap, the explorer and the benchmarks.
+
+The robot is round, so whether it fits at a place is a question about its
+centre: it may stand on a cell when the cell's centre lies farther than the
+**inscribed radius** from every wall cell's centre — the footprint's radius
+plus half a cell, the rasterisation error of a wall drawn into a grid (Nav2's
+inflation layer marks cells nearer than that ``INSCRIBED``, and its planners
+never enter them; homing's costmap does the same with this function). In
+wall-face terms a passage lets the robot through when it is wider than the
+footprint's diameter, with less than a cell to spare, so the rule decides
+the cells a gap the width of the robot is drawn with: a 0.40 m corridor drawn
+in 5 cm cells is 8 cells, and no cell of it is 0.215 m from both walls.
+
+On a true floor plan (evaluation only: the benchmarks, ``world show``) the
+rule gives the **navigable area**:
+
+1. ``fits``: free cells where the centre fits (above);
+2. the region: the 8-connected component of (1) the start is in (or the
+   nearest one, for a start beside a wall);
+3. the navigable area: the free cells the footprint sweeps from the region
+   (within the inscribed radius of one of its cells) — what the robot can
+   drive over, and the area exploration is scored on;
+4. **blocked** places: the free space 8-connected to the start that (3)
+   leaves out, by component of at least ``MIN_BLOCKED``, each with the
+   width of the widest way in — the best bottleneck over every path from the
+   region: the largest clearance ``t`` such that cells at least ``t`` from
+   every wall still join the region to the place, reported as a wall-to-wall
+   width ``2·t`` less half a cell (within half a cell of the drawn width).
+
+Grids are (H, W) with row 0 at the lowest y; distances between cell centres.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from homing.mapping.distance import distance_cells
+from homing.robot.turtlebot import FOOTPRINT_RADIUS
+
+MIN_BLOCKED = 0.25  # [m²] free space left out in smaller pieces is a corner or a crack, not a place
+
+
+def inscribed_radius(resolution: float, robot_radius: float = FOOTPRINT_RADIUS) -> float:
+    """Centre distance [m] to a wall cell's centre under which the robot touches it: the footprint's radius
+    plus half a cell (the rasterisation error of walls)."""
+    return robot_radius + 0.5 * resolution
+
+
+def centre_fits(solid: np.ndarray, resolution: float, robot_radius: float = FOOTPRINT_RADIUS) -> np.ndarray:
+    """(H, W) bool: cells whose centre lies farther than the inscribed radius from every ``solid`` cell's centre
+    (``solid`` (H, W) bool: walls; all True where there is no wall)."""
+    if not solid.any():
+        return np.ones(solid.shape, bool)
+    return distance_cells(~solid) * resolution > inscribed_radius(resolution, robot_radius)
+
+
+def disc(radius_cells: float) -> np.ndarray:
+    """(2k+1, 2k+1) uint8 structuring element: cells whose centre lies within ``radius_cells`` of the middle."""
+    k = max(0, int(math.ceil(radius_cells - 1e-9)))
+    yy, xx = np.mgrid[-k : k + 1, -k : k + 1]
+    return (xx * xx + yy * yy <= radius_cells * radius_cells + 1e-9).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class Blocked:
+    """Free space joined to the start only through passages narrower than the robot: where (its centroid, [m],
+    the map's frame), how much (``area`` [m²]) and the widest way in (``width`` [m], wall to wall)."""
+
+    x: float
+    y: float
+    area: float
+    width: float
+
+
+@dataclass(frozen=True)
+class Navigable:
+    """The module doc's rule on a floor plan: the navigable area (``mask``, (H, W) bool, and ``area`` [m²]),
+    the cells the robot's centre can reach (``region``) and the places passages too narrow keep it from."""
+
+    mask: np.ndarray = field(repr=False)
+    region: np.ndarray = field(repr=False)
+    area: float
+    blocked: tuple[Blocked, ...]
+
+    @property
+    def blocked_area(self) -> float:
+        """[m²] free space behind passages narrower than the robot."""
+        return sum(b.area for b in self.blocked)
+
+    def summary(self) -> str:
+        """One line: the navigable area and what the robot cannot reach, with the passages' widths."""
+        text = f"navigable area {self.area:.1f} m²"
+        if self.blocked:
+            text += "; behind passages narrower than the robot: " + ", ".join(
+                f"{b.area:.1f} m² at ({b.x:.1f}, {b.y:.1f}) through {b.width:.2f} m" for b in self.blocked)
+        return text
+
+
+def navigable(free: np.ndarray, resolution: float, origin: tuple[float, float], start_xy: tuple[float, float],
+              robot_radius: float = FOOTPRINT_RADIUS) -> Navigable:
+    """The navigable area of a floor plan (module doc): ``free`` (H, W) bool, ``resolution`` [m], ``origin``
+    (x, y) [m] of cell (0, 0)'s corner, the robot's start ``start_xy`` [m]."""
+    free = np.asarray(free, bool)
+    h, w = free.shape
+    sr = int(np.clip(math.floor((start_xy[1] - origin[1]) / resolution), 0, h - 1))
+    sc = int(np.clip(math.floor((start_xy[0] - origin[0]) / resolution), 0, w - 1))
+    empty = np.zeros_like(free)
+    fits = free & centre_fits(~free, resolution, robot_radius)
+    if not fits.any():
+        return Navigable(empty, empty, 0.0, ())
+    region = _component_at(fits, (sr, sc))
+    r_cells = inscribed_radius(resolution, robot_radius) / resolution
+    mask = cv2.dilate(region.astype(np.uint8), disc(r_cells)).astype(bool) & free
+    connected = _component_at(free, (sr, sc))
+    left_out = (connected & ~mask).astype(np.uint8)
+    n, labels, stats, centroids = cv2.connectedComponentsWithStats(left_out, connectivity=8)
+    clearance = distance_cells(free)  # [cells] to the nearest cell that is not free
+    blocked = []
+    for k in range(1, n):
+        area = float(stats[k, cv2.CC_STAT_AREA]) * resolution**2
+        if area < MIN_BLOCKED:
+            continue
+        t = _bottleneck(clearance, region, labels == k, r_cells)
+        cx, cy = centroids[k]
+        blocked.append(Blocked(origin[0] + (cx + 0.5) * resolution, origin[1] + (cy + 0.5) * resolution, area,
+                               max(0.0, (2.0 * t - 0.5) * resolution)))
+    blocked.sort(key=lambda b: -b.area)
+    return Navigable(mask, region, float(mask.sum()) * resolution**2, tuple(blocked))
+
+
+def _component_at(mask: np.ndarray, cell: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool: the 8-connected component of ``mask`` holding ``cell``, else the one nearest to it."""
+    _, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    lab = labels[cell]
+    if lab == 0:
+        rows, cols = np.nonzero(labels)
+        i = int(np.argmin((rows - cell[0]) ** 2 + (cols - cell[1]) ** 2))
+        lab = labels[rows[i], cols[i]]
+    return labels == lab
+
+
+def _bottleneck(clearance: np.ndarray, region: np.ndarray, place: np.ndarray, at_most: float) -> float:
+    """[cells] the largest clearance t ≤ ``at_most`` such that cells of clearance ≥ t join ``region`` to
+    ``place`` (binary search over the clearances that occur), 0 when nothing does."""
+    values = np.unique(clearance[(clearance > 0) & (clearance <= at_most)])
+    lo, hi, best = 0, len(values) - 1, 0.0
+    seed = tuple(np.argwhere(region)[0])
+    while lo <= hi:
+        mid = (lo + hi) // 2
+        t = float(values[mid])
+        joined = _component_at(clearance >= t, seed) & place  # the region's cells all clear t (t ≤ at_most)
+        if joined.any():
+            best, lo = t, mid + 1
+        else:
+            hi = mid - 1
+    return best
