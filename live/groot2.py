@@ -137,7 +137,8 @@ class Groot2Server:
         try:
             sock.bind(f"tcp://{host}:{port if port else '*'}")
         except zmq.ZMQError as err:
-            raise UserError(f"--groot {self.host}:{port}: {err.strerror}") from None
+            why = zmq.strerror(err.errno) if err.errno is not None else str(err)  # strerror without the address
+            raise UserError(f"--groot {self.host}:{port}: {why}") from None
         return int(sock.getsockopt_string(zmq.LAST_ENDPOINT).rsplit(":", 1)[1])
 
     # --- the runner's thread ---------------------------------------------------------------------------------

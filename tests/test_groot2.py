@@ -9,8 +9,15 @@ of status with the idle-after codes, msgpack blackboards, and
 
 from __future__ import annotations
 
+import os
+import re
+import selectors
+import signal
 import socket
 import struct
+import subprocess
+import sys
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +34,7 @@ from homing.missions.compiler import compile_mission  # noqa: E402
 from homing.missions.runner import Runner, StatusChange  # noqa: E402
 from py_trees.common import Status  # noqa: E402
 
-from tests.conftest import REPO  # noqa: E402
+from tests.conftest import REPO, homing_cli  # noqa: E402
 from tests.mission_fakes import FakeRobot  # noqa: E402
 
 REPLY_TIMEOUT = 5.0  # [s] a reply later than this is a failure, not a wait
@@ -339,3 +346,65 @@ def test_the_publisher_is_on_the_next_port_and_loopback_only(client: Any) -> Non
                     probe.connect((outside, bound))
     finally:
         server.close()
+
+
+@pytest.mark.parametrize("value, message", [("nonsense", "not a port"), ("70000", "not within"),
+                                            ("65535", "no port for the publisher")])
+def test_a_bad_groot_value_is_one_line_exit_2(value: str, message: str) -> None:
+    code, _, err = homing_cli("run", str(REPO / "missions" / "explore.yaml"), "--world", "lab", "--no-view",
+                              "--groot", value)
+    assert code == 2
+    assert err.count("\n") == 1 and message in err and "Traceback" not in err, err
+
+
+def test_a_taken_groot_port_is_one_line_exit_2() -> None:
+    context = zmq.Context()
+    taken = context.socket(zmq.REP)
+    port = taken.bind_to_random_port("tcp://127.0.0.1")
+    try:
+        code, _, err = homing_cli("run", str(REPO / "missions" / "explore.yaml"), "--world", "lab", "--no-view",
+                                  "--groot", str(port))
+    finally:
+        taken.close(linger=0)
+        context.term()
+    assert code == 2
+    assert err.count("\n") == 1 and f"--groot 127.0.0.1:{port}" in err and "in use" in err, err
+
+
+@pytest.mark.slow
+def test_homing_run_groot_serves_until_sigterm_then_closes_its_ports(client: Any) -> None:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "homing.missions.cli", "run", str(REPO / "missions" / "explore.yaml"), "--world", "lab",
+         "--no-view", "--speed", "1", "--until", "10min", "--groot", "0"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )  # fmt: skip
+    try:
+        selector = selectors.DefaultSelector()
+        selector.register(proc.stderr, selectors.EVENT_READ)  # type: ignore[arg-type]
+        deadline = time.monotonic() + 60.0
+        line = ""
+        while "serving Groot2" not in line:
+            assert selector.select(max(0.0, deadline - time.monotonic())), "the run never said where it serves"
+            line = proc.stderr.readline()  # type: ignore[union-attr]
+            assert line, "the run ended before serving"
+        found = re.search(r"on 127\.0\.0\.1:(\d+) \(publisher (\d+)\)", line)
+        assert found, line
+        port, publisher = int(found[1]), int(found[2])
+        sock = client(port)
+        assert DET.fromstring(ask_ok(sock, "T", 1)[1]).tag == "root"
+        while 1 not in parse_status(ask_ok(sock, "S", 2)[1]).values():  # polls until the first tick is published
+            assert time.monotonic() < deadline, "no node ever ran"
+        proc.send_signal(signal.SIGTERM)
+        out, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 128 + signal.SIGTERM
+    assert "stopped: interrupted by SIGTERM" in out
+    for bound in (port, publisher):  # both sockets closed with the run: the ports can be listened on again
+        with socket.socket() as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # past our own connection's TIME_WAIT
+            probe.bind(("127.0.0.1", bound))
+            probe.listen()
