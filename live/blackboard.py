@@ -56,9 +56,10 @@ def json_value(value: Any, depth: int = 0) -> Any:
     elif isinstance(value, tuple) and hasattr(value, "_fields"):
         return {name: json_value(v, depth + 1) for name, v in zip(value._fields, value, strict=True)}
     elif isinstance(value, Mapping) and len(value) <= MAX_ITEMS:
-        return {str(k): json_value(v, depth + 1) for k, v in value.items()}
+        items = list(dict(value).items())  # one copy (atomic for a dict): the tick thread may be changing it
+        return {str(k): json_value(v, depth + 1) for k, v in items}
     elif isinstance(value, (list, tuple, set, frozenset)) and len(value) <= MAX_ITEMS:
-        return [json_value(v, depth + 1) for v in value]
+        return [json_value(v, depth + 1) for v in list(value)]
     elif isinstance(value, (list, tuple, set, frozenset, Mapping)):
         return f"<{type(value).__name__} of {len(value)}>"
     return f"<{type(value).__name__}>"

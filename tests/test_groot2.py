@@ -38,6 +38,7 @@ from tests.conftest import REPO, homing_cli  # noqa: E402
 from tests.mission_fakes import FakeRobot  # noqa: E402
 
 REPLY_TIMEOUT = 5.0  # [s] a reply later than this is a failure, not a wait
+POLL_INTERVAL = 0.05  # [s] between status requests while waiting for a run to start (Groot2 polls too)
 
 SCRIPTED = """\
 mission: scripted
@@ -166,6 +167,22 @@ def test_request_header_and_status_codes_are_bt_cpps() -> None:
     assert request_header("S", 0x01020304) == bytes([2, ord("S"), 4, 3, 2, 1])
     assert [status_code(s, Status.INVALID) for s in (Status.RUNNING, Status.SUCCESS, Status.FAILURE)] == [1, 2, 3]
     assert [status_code(Status.INVALID, s) for s in (Status.INVALID, Status.RUNNING, Status.SUCCESS, Status.FAILURE)] == [0, 11, 12, 13]
+
+
+def test_blackboard_values_become_small_json() -> None:
+    import numpy as np
+    from homing.live.blackboard import json_value
+    from homing.robot import Pose2, Twist2
+
+    assert json_value(Pose2(1.0, 2.0, 0.5)) == {"x": 1.0, "y": 2.0, "theta": 0.5}
+    assert json_value([Twist2(0.1, 0.0), None, "s", True]) == [{"v": 0.1, "omega": 0.0}, None, "s", True]
+    assert json_value(np.float32(0.5)) == 0.5 and json_value(np.int64(3)) == 3
+    assert json_value(np.arange(3)) == [0, 1, 2]
+    assert json_value(np.zeros((100, 2))) == "<ndarray 100x2 float64>"
+    assert json_value(float("nan")) == "nan"
+    assert json_value({i: i for i in range(40)}) == "<dict of 40>"
+    assert json_value(object()) == "<object>"
+    msgpack.packb(json_value({"a": [[[[1]]]]}))  # deep nesting ends in a string msgpack packs
 
 
 @pytest.mark.parametrize("name", ["missions/explore.yaml", "missions/persistent.yaml", "missions/examples/wander.yaml"])
@@ -395,6 +412,7 @@ def test_homing_run_groot_serves_until_sigterm_then_closes_its_ports(client: Any
         assert DET.fromstring(ask_ok(sock, "T", 1)[1]).tag == "root"
         while 1 not in parse_status(ask_ok(sock, "S", 2)[1]).values():  # polls until the first tick is published
             assert time.monotonic() < deadline, "no node ever ran"
+            time.sleep(POLL_INTERVAL)  # as Groot2 polls: not waiting for anything in particular
         proc.send_signal(signal.SIGTERM)
         out, _ = proc.communicate(timeout=60)
     finally:
