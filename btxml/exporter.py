@@ -218,8 +218,9 @@ class LiveTree:
     main tree first, ``_fullpath=""``), every node with its ``name`` and a
     ``_uid`` (1, 2, … in preorder, as BT.CPP numbers nodes as it creates
     them), a ``<SubTree ID _fullpath _uid>`` where an instance is called,
-    and the ``TreeNodesModel``. ``nodes``: ``(uid, behaviour)`` in uid order;
-    homing compiles a subtree call into its instance's root, so a SubTree's
+    and the ``TreeNodesModel``. ``nodes``: ``(uid, behaviour)`` in the order
+    ``Groot2Publisher`` lays out its status buffer (tree instance by tree
+    instance as they were created, each one's nodes in uid order); homing compiles a subtree call into its instance's root, so a SubTree's
     uid shows that root's status, as BT.CPP's SubTree node mirrors its
     child. ``blackboards``: Groot2's blackboard names (the main tree's ID,
     each instance's ``_fullpath``) → the blackboard namespace its entries live
@@ -248,22 +249,25 @@ def export_live(mission: CompiledMission) -> LiveTree:
     live = LiveTree("", blackboards={main_id: "/"})
     trees: list[ET.Element] = [ET.Element("BehaviorTree", {"ID": main_id, "_fullpath": ""})]
 
-    def uid_for(node: Behaviour) -> str:
+    owner: dict[int, int] = {}  # uid → the index in `trees` of the tree instance holding the node
+
+    def uid_for(node: Behaviour, tree: int) -> str:
         uid = len(live.nodes) + 1
         live.nodes.append((uid, node))
+        owner[uid] = tree
         return str(uid)
 
-    def element(node: Behaviour, opened: int = 0) -> ET.Element:
+    def element(node: Behaviour, tree: int, opened: int = 0) -> ET.Element:
         info = mission.info.get(node.id)
         instances = info.instances if info is not None else []
         if opened < len(instances):  # a subtree call compiled into this node: SubTree here, its tree apart
             tree_id, namespace = instances[opened]
             path = namespace.strip("/")
-            call = ET.Element("SubTree", {"ID": tree_id, "_fullpath": path, "_uid": uid_for(node)})
-            tree = ET.Element("BehaviorTree", {"ID": tree_id, "_fullpath": path})
-            trees.append(tree)
+            call = ET.Element("SubTree", {"ID": tree_id, "_fullpath": path, "_uid": uid_for(node, tree)})
+            trees.append(ET.Element("BehaviorTree", {"ID": tree_id, "_fullpath": path}))
             live.blackboards[path] = namespace
-            tree.append(element(node, opened + 1))
+            inner = len(trees) - 1
+            trees[inner].append(element(node, inner, opened + 1))
             return call
         attrs: dict[str, str] = {}
         if info is None:  # not built from the mission (none today): shown under its class name
@@ -280,11 +284,12 @@ def export_live(mission: CompiledMission) -> LiveTree:
                 tag = info.spec
                 attrs = {k: _port_text(spec.param(k), v) for k, v in params.items() if v is not None}
                 exporter.used[info.spec] = spec
-        out = ET.Element(tag, {"name": node.name, "_uid": uid_for(node), **attrs})
-        out.extend(element(child) for child in node.children)
+        out = ET.Element(tag, {"name": node.name, "_uid": uid_for(node, tree), **attrs})
+        out.extend(element(child, tree) for child in node.children)
         return out
 
-    trees[0].append(element(mission.root))
+    trees[0].append(element(mission.root, 0))
+    live.nodes.sort(key=lambda entry: (owner[entry[0]], entry[0]))
     root.extend(trees)
     root.append(exporter.models())
     ET.indent(root, space="  ")
