@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import math
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -26,8 +27,9 @@ from homing.behaviours.ports import parse_port
 from homing.behaviours.registry import NODES, NodeSpec, Param
 from homing.btxml.reader import HEADER_TAG
 from homing.btxml.yaml_out import scalar
-from homing.missions.compiler import compile_mission
+from homing.missions.compiler import CompiledMission, compile_mission
 from homing.missions.loader import MissionSource
+from py_trees.behaviour import Behaviour
 
 from homing import yamlfile
 
@@ -206,3 +208,90 @@ def export_xml(path: str | Path) -> str:
     root.append(exporter.models())
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+@dataclass
+class LiveTree:
+    """A compiled mission as BT.CPP writes a *running* tree (``WriteTreeToXML(tree, add_metadata=true, …)``).
+
+    ``xml``: one ``<BehaviorTree ID _fullpath>`` per subtree instance (the
+    main tree first, ``_fullpath=""``), every node with its ``name`` and a
+    ``_uid`` (1, 2, … in preorder, as BT.CPP numbers nodes as it creates
+    them), a ``<SubTree ID _fullpath _uid>`` where an instance is called,
+    and the ``TreeNodesModel``. ``nodes``: ``(uid, behaviour)`` in the order
+    ``Groot2Publisher`` lays out its status buffer (tree instance by tree
+    instance as they were created, each one's nodes in uid order); homing compiles a subtree call into its instance's root, so a SubTree's
+    uid shows that root's status, as BT.CPP's SubTree node mirrors its
+    child. ``blackboards``: Groot2's blackboard names (the main tree's ID,
+    each instance's ``_fullpath``) → the blackboard namespace its entries live
+    under (``"/"``, ``"/<instance>/"``; ARCHITECTURE.md, blackboard keys).
+    """
+
+    xml: str
+    nodes: list[tuple[int, Behaviour]] = field(default_factory=list)
+    blackboards: dict[str, str] = field(default_factory=dict)
+
+
+def _port_text(param: Param | None, value: Any) -> str:
+    """A compiled parameter value as attribute text (``_text``), or its ``str`` when it has no YAML form."""
+    try:
+        return _text(param, value)
+    except (yaml.YAMLError, TypeError, ValueError):
+        return str(value)
+
+
+def export_live(mission: CompiledMission) -> LiveTree:
+    """The compiled ``mission`` as BT.CPP v4 XML with ``_uid`` attributes, for Groot2's monitor (see :class:`LiveTree`)."""
+    source = mission.source
+    exporter = Exporter(source)
+    main_id = "MainTree" if "MainTree" not in source.subtrees else "MainTree_"
+    root = ET.Element("root", {"BTCPP_format": "4", "main_tree_to_execute": main_id})
+    live = LiveTree("", blackboards={main_id: "/"})
+    trees: list[ET.Element] = [ET.Element("BehaviorTree", {"ID": main_id, "_fullpath": ""})]
+
+    owner: dict[int, int] = {}  # uid → the index in `trees` of the tree instance holding the node
+
+    def uid_for(node: Behaviour, tree: int) -> str:
+        uid = len(live.nodes) + 1
+        live.nodes.append((uid, node))
+        owner[uid] = tree
+        return str(uid)
+
+    def element(node: Behaviour, tree: int, opened: int = 0) -> ET.Element:
+        info = mission.info.get(node.id)
+        instances = info.instances if info is not None else []
+        if opened < len(instances):  # a subtree call compiled into this node: SubTree here, its tree apart
+            tree_id, namespace = instances[opened]
+            path = namespace.strip("/")
+            call = ET.Element("SubTree", {"ID": tree_id, "_fullpath": path, "_uid": uid_for(node, tree)})
+            trees.append(ET.Element("BehaviorTree", {"ID": tree_id, "_fullpath": path}))
+            live.blackboards[path] = namespace
+            inner = len(trees) - 1
+            trees[inner].append(element(node, inner, opened + 1))
+            return call
+        attrs: dict[str, str] = {}
+        if info is None:  # not built from the mission (none today): shown under its class name
+            tag = type(node).__name__
+        else:
+            params = {k: ("{" + info.ports[k] + "}" if k in info.ports else v) for k, v in info.params.items()}
+            twin = _twin(info.spec, params, len(node.children))
+            if twin is not None:
+                tag, attrs = twin
+                if tag in NAV2_MODELS:
+                    exporter.twins.add(tag)
+            else:
+                spec = NODES[info.spec]
+                tag = info.spec
+                attrs = {k: _port_text(spec.param(k), v) for k, v in params.items() if v is not None}
+                exporter.used[info.spec] = spec
+        out = ET.Element(tag, {"name": node.name, "_uid": uid_for(node, tree), **attrs})
+        out.extend(element(child, tree) for child in node.children)
+        return out
+
+    trees[0].append(element(mission.root, 0))
+    live.nodes.sort(key=lambda entry: (owner[entry[0]], entry[0]))
+    root.extend(trees)
+    root.append(exporter.models())
+    ET.indent(root, space="  ")
+    live.xml = '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+    return live

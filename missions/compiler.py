@@ -77,6 +77,9 @@ class NodeInfo:
     reads: tuple[str, ...] = ()
     writes: tuple[str, ...] = ()
     ports: dict[str, str] = field(default_factory=dict)  # parameter → the key it is read from
+    # On the root of subtree instances: (subtree name, the instance's blackboard namespace "/<instance>/"), outermost
+    # first (a subtree whose tree is another subtree's call roots both instances at one node).
+    instances: list[tuple[str, str]] = field(default_factory=list)
 
 
 @dataclass
@@ -465,6 +468,7 @@ class Compiler:
         root = self.node(sub.tree, sub.tree_container, "tree", inner)
         if root is not None:
             self.info[root.id].subtree = str(instance)
+            self.info[root.id].instances.insert(0, (name, namespace))
             explicit = isinstance(sub.tree, LocatedDict) and any(
                 isinstance(b, LocatedDict) and "name" in b for b in sub.tree.values()
             )

@@ -16,7 +16,7 @@ except ModuleNotFoundError:  # Python 3.10
 from tests.conftest import REPO
 
 PARTS = ["robot", "sim", "perception", "mapping", "navigation", "lifecycle", "behaviours", "missions", "benchmarks",
-         "btxml", "logs", "emulators"]
+         "btxml", "logs", "emulators", "live"]
 
 
 def test_every_folder_with_init_is_a_listed_package() -> None:

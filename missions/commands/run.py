@@ -54,6 +54,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--serve", metavar="[HOST:]PORT",
         help="stream the tree to followers ('homing view --attach HOST:PORT'); binds 127.0.0.1 unless given a host",
     )  # fmt: skip
+    parser.add_argument(
+        "--groot", metavar="[HOST:]PORT", nargs="?", const="1667",
+        help="serve the tree to Groot2's monitor (BT.CPP v4's protocol; PORT and PORT+1, default 1667 and 1668); "
+        "binds 127.0.0.1 unless given a host; needs the groot extra",
+    )  # fmt: skip
     keep = parser.add_mutually_exclusive_group()
     keep.add_argument("--run-dir", metavar="DIR",
                       help="save a snapshot (map, tags, counters, the dock) into DIR whenever the mission asks "
@@ -227,6 +232,30 @@ def _server(args: argparse.Namespace, mission: Any) -> Any:
     return server
 
 
+def _groot(args: argparse.Namespace, mission: Any) -> Any:
+    """The Groot2 server for ``--groot`` (both ports bound before the run starts), or None."""
+    if args.groot is None:
+        return None
+    from homing.missions.remote import parse_address
+
+    from homing.errors import UserError
+
+    try:
+        host, port = parse_address(args.groot)
+    except ValueError as err:
+        raise UserError(f"--groot: {err}") from None
+    if port == 65535:
+        raise UserError("--groot: port 65535 leaves no port for the publisher (PORT + 1)")
+    try:
+        from homing.live.groot2 import Groot2Server
+    except ImportError as err:
+        raise UserError(f"--groot needs the groot extra (pip install 'homing[groot]'): {err}") from None
+    server = Groot2Server(mission, host, port)
+    print(f"serving Groot2 on {server.host}:{server.port} (publisher {server.publisher_port}): "
+          f"connect Groot2's monitor to {server.host}, port {server.port}", file=sys.stderr, flush=True)  # fmt: skip
+    return server
+
+
 def run(args: argparse.Namespace) -> int:
     from homing.missions.commands.check import overrides
     from homing.missions.compiler import compile_mission
@@ -255,14 +284,18 @@ def run(args: argparse.Namespace) -> int:
     plain = PlainLog(sys.stdout)
 
     def on_change(change: Any) -> None:
+        if groot is not None:
+            groot.on_change(change)
         if status_log is not None:
             status_log(change)
         if not live:
             plain(change)
 
     server = _server(args, mission)
+    groot = None
     robot = recorder = None
     try:
+        groot = _groot(args, mission)
         robot = _adapter(args)
         if snap is not None and snap.sim is not None and hasattr(robot, "restore_state"):
             try:
@@ -277,6 +310,8 @@ def run(args: argparse.Namespace) -> int:
         if args.save_map:
             runner.bb.register_key(key="/map/grid", access=Access.READ)
         callbacks: list[Any] = [server.publish] if server is not None else []  # after each tick, in order
+        if groot is not None:
+            callbacks.append(groot.on_tick)
 
         def on_tick(r: Any) -> None:
             for callback in callbacks:
@@ -294,6 +329,8 @@ def run(args: argparse.Namespace) -> int:
         if server is not None:
             server.publish(runner, force=True)
     finally:
+        if groot is not None:
+            groot.close()
         if server is not None:
             server.close()
         if recorder is not None:
