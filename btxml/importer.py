@@ -72,11 +72,11 @@ class Importer:
     # -- problems ------------------------------------------------------------------------
     def error(self, el: Element, message: str, attr: str | None = None) -> None:
         line, col = el.where(attr)
-        self.errors.append(UserError(message, self.doc.path, line, col))
+        self.errors.append(UserError(message, self.doc.file_of(self.current), line, col))
 
     def note(self, el: Element, message: str, attr: str | None = None) -> None:
         line, col = el.where(attr)
-        self.notes.append(f"{self.doc.path.name}:{line}:{col}: {message}")
+        self.notes.append(f"{self.doc.file_of(self.current).name}:{line}:{col}: {message}")
 
     def _tree_name(self, tree_id: str) -> str:
         name = re.sub(r"\W", "_", tree_id)
@@ -429,10 +429,13 @@ def _typed_text(text: str) -> Any:
     return text
 
 
-def import_xml(path: str | Path) -> Imported:
-    """Convert a BT.CPP XML file to a homing mission (raises :class:`UserErrors` listing every problem)."""
+def import_xml(path: str | Path, tree: str | None = None) -> Imported:
+    """Convert a BT.CPP XML file (and the files it includes) to a homing mission, ``tree`` its main tree's ID.
+
+    Raises :class:`UserErrors` listing every problem.
+    """
     load_nodes()
-    doc = read(path)
+    doc = read(path, tree)
     importer = Importer(doc)
     mission = importer.convert()
     if doc.header is None:

@@ -16,8 +16,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "as homing's. A node with no equivalent is a file:line:col error; attributes homing does not use are "
         "listed as notes in the mission's header.",
     )
-    parser.add_argument("tree", metavar="TREE.xml")
+    parser.add_argument("tree", metavar="TREE.xml", help="the file to import; its <include path> files are read too, "
+                        "relative to the including file as BehaviorTree.CPP does")
     parser.add_argument("-o", "--output", metavar="MISSION.yaml", help="write the mission here (default: stdout)")
+    parser.add_argument("--tree", metavar="ID", dest="main_tree", help="the main tree, for a file of several trees without "
+                        "main_tree_to_execute (or to run another one)")
     parser.set_defaults(func=run)
 
 
@@ -32,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.output and Path(args.output).is_dir():
         raise UserError("is a directory: give the mission file to write", args.output)
-    imported = import_xml(args.tree)
+    imported = import_xml(args.tree, args.main_tree)
     if not args.output:
         sys.stdout.write(imported.text)
         return 0
