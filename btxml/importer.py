@@ -277,7 +277,7 @@ class Importer:
         if rule.homing == "switch":
             body.update(self.switch(el, tag))
         watcher = False
-        if rule.homing in ("GoalUpdated", "GlobalUpdatedGoal") and not ({"goal", "goals"} & set(el.attrs)):
+        if rule.homing in ("GoalUpdated", "GlobalUpdatedGoal", "GoalUpdatedController") and not ({"goal", "goals"} & set(el.attrs)):
             body.update(goal_key="goal", goals_key="goals")  # Nav2 watches both by default
             watcher = True
         if rule.homing == "speed_controller" and "goal" not in el.attrs:
@@ -462,7 +462,7 @@ def _unwritten(mission: dict[str, Any]) -> tuple[list[str], set[str]]:
         problems = Problems()
         compiler = Compiler(load_source(probe, None, problems), problems)
         compiler.compile()
-    watchers = ("(GoalUpdated)", "(GlobalUpdatedGoal)", "(speed_controller)")
+    watchers = ("(GoalUpdated)", "(GlobalUpdatedGoal)", "(GoalUpdatedController)", "(speed_controller)")
     unwritten = sorted({r[0] for r in compiler.reads if r[0] not in compiler.writes})
     return unwritten, {r[0] for r in compiler.reads if not r[3].endswith(watchers)}
 
