@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import py_trees
 import pytest
 from homing.behaviours import load_nodes
 from homing.behaviours.registry import NODES
@@ -48,7 +49,7 @@ def test_every_nav2_node_is_mapped_or_refused_with_a_reason() -> None:
             reason = NO_EQUIVALENT.get(name, "")
             assert reason and "\n" not in reason, f"{name} is neither mapped nor refused with a reason"
     mapped = [n for n in NAV2_NODES if n in RULES]
-    assert len(mapped) == 44, f"{len(mapped)} of 71 mapped (27 refused, each with its reason)"
+    assert len(mapped) == 50, f"{len(mapped)} of 71 mapped (21 refused, each with its reason)"
 
 
 NEWER = """<root BTCPP_format="4" main_tree_to_execute="Main">
@@ -115,3 +116,40 @@ def test_unmapped_nodes_are_refused_with_their_reason(tmp_path: Path, name: str)
     with pytest.raises(UserError) as info:
         import_xml(xml)
     assert str(info.value) == f"{xml}:3:3: <{name}> has no homing equivalent: {NO_EQUIVALENT[name]}"
+
+
+NAV2 = Path(__file__).parent / "data" / "nav2"
+
+
+def test_odometry_calibration_drives_a_square_back_to_its_start(tmp_path: Path) -> None:
+    out = tmp_path / "square.yaml"
+    assert main(["import", str(NAV2 / "odometry_calibration.xml"), "-o", str(out)]) == 0
+    robot = FakeRobot()
+    result = Runner(compile_mission(out), robot, until=200.0).run()
+    assert result.reason == "success"
+    legs = [p for p in robot.commands if p[1] > 0.0]
+    assert legs and max(p[1] for p in legs) == pytest.approx(0.02), "DriveOnHeading at Nav2's speed 0.02 m/s"
+    assert robot.pose.x == pytest.approx(0.0, abs=0.03) and robot.pose.y == pytest.approx(0.0, abs=0.03)
+    assert 40.0 < result.time < 60.0, "4 x 0.2 m at 0.02 m/s plus four quarter turns"
+
+
+def test_drive_on_heading_refuses_a_speed_against_the_distance(tmp_path: Path) -> None:
+    xml = tmp_path / "bad.xml"
+    xml.write_text('<root><BehaviorTree ID="T"><DriveOnHeading dist_to_travel="0.2" speed="-0.1"/></BehaviorTree></root>')
+    out = tmp_path / "bad.yaml"
+    out.write_text(import_xml(xml).text)
+    robot = FakeRobot()
+    runner = Runner(compile_mission(out), robot, until=5.0)
+    assert runner.run().reason == "failure" and robot.pose.x == 0.0
+    assert py_trees.blackboard.Blackboard.storage["/nav/failure"] == "bad_request"
+
+
+def test_follow_point_follows_goal_updates(tmp_path: Path) -> None:
+    out = tmp_path / "follow.yaml"
+    assert main(["import", str(NAV2 / "follow_point.xml"), "-o", str(out)]) == 0
+    mission = compile_mission(out, {"goal": [1.0, 0.0, 0.0]})
+    by_kind = {i.spec: i.params for i in mission.info.values()}
+    assert by_kind["GoalUpdater"]["output_goal"] == "/updated_goal"
+    assert by_kind["ComputePathToPose"]["goal_key"] == "/updated_goal"
+    assert by_kind["TruncatePath"] == {"distance": 1.0, "input_key": "/path", "output_key": "/truncated_path"}
+    assert by_kind["FollowPath"]["path_key"] == "/truncated_path"
