@@ -33,6 +33,7 @@ from tests.mission_fakes import FakeRobot
 NAV2 = REPO / "tests" / "data" / "nav2"
 NAVIGATORS = sorted(p.name for p in NAV2.glob("*.xml") if p.name != "docking_application_example.xml")
 REPLANNING = [n for n in NAVIGATORS if "replanning" in n]
+REPLANNERS = {"rate_controller", "GoalUpdatedController", "distance_controller", "speed_controller"}
 
 
 def write(tmp: Path, name: str, text: str) -> Path:
@@ -82,7 +83,7 @@ def test_nav2_navigator_trees_import_and_pass_check(tmp_path: Path, name: str) -
     if name not in REPLANNING:
         return  # follow_point and odometry_calibration: tests/test_btxml_nav2_nodes.py
     assert {"pipeline_sequence", "FollowPath"} <= kinds
-    assert kinds & {"rate_controller", "GoalUpdatedController"}, "replanning at a rate or on a new goal"
+    assert kinds & REPLANNERS, "replanning at a rate, on a new goal, every metre or at a speed-dependent rate"
     goals = mission.source.params
     assert set(goals) & {"goal", "goals"}, "Nav2's navigator input becomes a mission parameter"
 
