@@ -143,6 +143,11 @@ RULES: dict[str, Rule] = {
         "Control", "BackUp", "Spin", "Wait", "DriveOnHeading")},
     "GetCurrentPose": _nav2("GetCurrentPose", {"current_pose": ("pose_key", "key")}),
     "PathExpiringTimer": _nav2("PathExpiringTimer", {"seconds": ("seconds", "float"), "path": ("path_key", "key")}),
+    "PauseResumeController": Rule("pause_resume_controller", {"pause_service_name": ("pause_key", "key"),
+                                                              "resume_service_name": ("resume_key", "key")},
+                                  kind="control", source="Nav2",
+                                  note="a call to the pause (resume) service is true written to the blackboard entry "
+                                       "of that name"),
     # ---- BT.CPP 4 control nodes added after 4.0
     "TryCatch": Rule("try_catch", {"catch_on_halt": ("catch_on_halt", "bool")}, kind="control"),
     # ---- Nav2 actions and conditions
@@ -223,7 +228,6 @@ NO_EQUIVALENT: dict[str, str] = {
     "LatchedFallback": "not in BT.CPP 4's factory (a v3-era branch only): use fallback",
     "ParallelFirst": "not in BT.CPP 4's factory (a v3-era branch only): use parallel with success: 1",
     "ReactiveParallel": "not in BT.CPP 4's factory (a development branch only): use parallel",
-    "PauseResumeController": "its pause and resume requests are ROS services (not built yet as blackboard requests)",
     "AssistedTeleop": "no teleoperation in homing",
     "ClearCostmapAroundRobot": "homing clears the whole obstacle layer (ClearEntireCostmap)",
     "ClearCostmapExceptRegion": "homing clears the whole obstacle layer (ClearEntireCostmap)",

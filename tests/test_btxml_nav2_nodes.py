@@ -49,7 +49,7 @@ def test_every_nav2_node_is_mapped_or_refused_with_a_reason() -> None:
             reason = NO_EQUIVALENT.get(name, "")
             assert reason and "\n" not in reason, f"{name} is neither mapped nor refused with a reason"
     mapped = [n for n in NAV2_NODES if n in RULES]
-    assert len(mapped) == 50, f"{len(mapped)} of 71 mapped (21 refused, each with its reason)"
+    assert len(mapped) == 51, f"{len(mapped)} of 71 mapped (20 refused, each with its reason)"
 
 
 NEWER = """<root BTCPP_format="4" main_tree_to_execute="Main">
@@ -68,6 +68,10 @@ NEWER = """<root BTCPP_format="4" main_tree_to_execute="Main">
         <GoalUpdatedController goal="{updated_goal}">
           <AlwaysSuccess/>
         </GoalUpdatedController>
+        <PauseResumeController pause_service_name="/operator/pause" resume_service_name="/operator/resume">
+          <AlwaysSuccess/>
+          <Wait wait_duration="1"/>
+        </PauseResumeController>
       </PersistentSequence>
       <Script code="caught := true"/>
     </TryCatch>
@@ -85,7 +89,9 @@ def test_a_tree_of_the_newer_nodes_imports_checks_and_runs(tmp_path: Path) -> No
     mission = compile_mission(out, {"goal": [1.0, 0.0, 0.0]})
     kinds = {i.spec for i in mission.info.values()}
     assert {"try_catch", "persistent_sequence", "GoalUpdater", "GetCurrentPose", "ArePosesNear",
-            "nonblocking_sequence", "GoalUpdatedController"} <= kinds
+            "nonblocking_sequence", "GoalUpdatedController", "pause_resume_controller"} <= kinds
+    pause = next(i for i in mission.info.values() if i.spec == "pause_resume_controller")
+    assert pause.params == {"pause_key": "/operator/pause", "resume_key": "/operator/resume"}
     runner = Runner(mission, FakeRobot(), until=1.0)
     assert runner.run().reason == "success"
 

@@ -13,6 +13,7 @@ import py_trees
 import pytest
 from homing.behaviours.goal_updates import GoalUpdatedController, GoalUpdater
 from homing.behaviours.nav2_sequences import NonblockingSequence, PersistentSequence
+from homing.behaviours.pause_resume import PauseResumeController
 from homing.behaviours.try_catch import TryCatch
 from py_trees.common import Status
 
@@ -139,3 +140,45 @@ def test_goal_updated_controller_reticks_the_child_only_for_a_new_goal() -> None
     assert tick(node) == S and child.ticks == 3, "a new goal ticks the child again"
     node.stop(Status.INVALID)
     assert tick(node) == S and child.ticks == 4, "a new activation ticks the child first"
+
+
+# --------------------------------------------------------------------------- PauseResumeController
+
+
+def test_pause_resume_controller_pauses_runs_the_event_children_and_resumes() -> None:
+    client = board("/pause", "/resume")
+    work, paused, on_pause, on_resume = (Scripted("work", [R]), Scripted("paused", [R]), Scripted("on_pause", [R, S]),
+                                         Scripted("on_resume", [S]))  # fmt: skip
+    node = PauseResumeController("prc", [work, paused, on_pause, on_resume])
+    assert tick(node) == R and statuses(work, paused, on_pause) == [R, N, N] and node.state == "RESUMED"
+    client.set("/resume", True)
+    assert tick(node) == R and work.ticks == 2 and client.get("/resume") is False, "resume while resumed: refused"
+    client.set("/pause", True)
+    assert tick(node) == R and statuses(work, on_pause) == [N, R] and work.halts == 1 and node.state == "ON_PAUSE"
+    assert client.get("/pause") is False, "the request is taken"
+    assert tick(node) == R and statuses(on_pause) == [S] and node.state == "PAUSED", "ON_PAUSE done: paused"
+    assert tick(node) == R and statuses(paused) == [R] and work.ticks == 2
+    client.set("/resume", True)
+    assert tick(node) == R and statuses(paused, on_resume) == [N, S] and paused.halts == 1
+    assert node.state == "RESUMED"
+    assert tick(node) == R and work.ticks == 3 and work.starts == 2, "the work child starts afresh"
+
+
+def test_pause_resume_controller_without_optional_children_and_its_outcomes() -> None:
+    client = board("/pause", "/resume")
+    work = Scripted("work", [R, R, S])
+    node = PauseResumeController("prc", [work])
+    assert tick(node) == R
+    client.set("/pause", True)
+    assert tick(node) == R and node.state == "PAUSED" and work.halts == 1, "no ON_PAUSE child: paused at once"
+    assert tick(node) == R and work.ticks == 1, "no PAUSED child: RUNNING, nothing ticked"
+    client.set("/resume", True)
+    assert tick(node) == R and node.state == "RESUMED" and work.ticks == 1, "no ON_RESUME child: resumed next tick"
+    assert tick(node) == R and tick(node) == S, "SUCCESS only from the RESUMED child"
+    failing = PauseResumeController("prc2", [Scripted("w", [R]), Scripted("p", [F])])
+    assert tick(failing) == R
+    client.set("/pause", True)
+    assert tick(failing) == R and failing.state == "PAUSED"
+    assert tick(failing) == F, "a failing child fails the node"
+    with pytest.raises(ValueError, match="1 to 4 children"):
+        PauseResumeController("prc3", [Scripted(str(i), [S]) for i in range(5)])
