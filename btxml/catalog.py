@@ -141,6 +141,9 @@ RULES: dict[str, Rule] = {
     **{f"Cancel{what}": _nav2("Stop", {}, note=f"homing's {what} runs in its own leaf, which a halt stops; "
                                                 f"Cancel{what} stops the base this tick") for what in (
         "Control", "BackUp", "Spin", "Wait", "DriveOnHeading")},
+    "IsStopped": _nav2("IsStopped", {"velocity_threshold": ("velocity_threshold", "float"),
+                                     "duration_stopped": ("duration", "ms")}),
+    "IsStuck": _nav2("IsStuck", {}),
     "GetCurrentPose": _nav2("GetCurrentPose", {"current_pose": ("pose_key", "key")}),
     "PathExpiringTimer": _nav2("PathExpiringTimer", {"seconds": ("seconds", "float"), "path": ("path_key", "key")}),
     "PauseResumeController": Rule("pause_resume_controller", {"pause_service_name": ("pause_key", "key"),
@@ -234,7 +237,6 @@ NO_EQUIVALENT: dict[str, str] = {
     "NavigateThroughPoses": "no through-poses navigator leaf; use ComputePathThroughPoses and FollowPath",
     "SmoothPath": "no path smoother server", "WouldASmootherRecoveryHelp": "no path smoother server",
     "TruncatePathLocal": "not yet: a window of the path around the robot's closest point (no homing leaf)",
-    "IsStuck": "no stuck detector (the navigator's progress checker fails FollowPath instead)",
     "TransformAvailable": "no TF in homing", "InitialPoseReceived": "no AMCL initial pose in homing",
     "ReinitializeGlobalLocalization": "no AMCL in homing",
     "CancelAssistedTeleop": "no teleoperation in homing",
@@ -245,7 +247,6 @@ NO_EQUIVALENT: dict[str, str] = {
     "ComputeAndTrackRoute": "no route graph in homing (Nav2's route server)",
     "WouldARouteRecoveryHelp": "no route graph in homing (Nav2's route server's error codes)",
     "RemoveInCollisionGoals": "not yet: no leaf checks a goal list against the costmap",
-    "IsStopped": "not yet: no leaf watches the odometry speed over a duration",
 }
 
 # py_trees' composites and decorators (for the README's table; homing reads no py_trees code).
