@@ -15,14 +15,12 @@ from collections.abc import Iterator
 from typing import Any
 
 import py_trees
+from homing.behaviours.keys import GOAL_UPDATE_KEY, GOALS_UPDATE_KEY
 from homing.behaviours.paths import GOAL_KEY
 from homing.behaviours.registry import Param, register
 from homing.behaviours.throttles import _Trigger, changed
 from py_trees.behaviour import Behaviour
 from py_trees.common import Access, Status
-
-GOAL_UPDATE_KEY = "/nav/goal_update"  # what Nav2's goal_update topic carries: a new goal pose (map)
-GOALS_UPDATE_KEY = "/nav/goals_update"  # and goals_update: a new list of goal poses
 
 
 @register("GoalUpdater", kind="decorator", params=(
