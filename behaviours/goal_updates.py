@@ -4,7 +4,8 @@ Semantics from ``nav2_behavior_tree/plugins/decorator/goal_updater_node.cpp``
 and ``goal_updated_controller.cpp``. Nav2's ``GoalUpdater`` listens to the
 ROS topics ``goal_update`` / ``goals_update``; homing has no topics, so the
 update is a blackboard entry (``/nav/goal_update``, ``/nav/goals_update`` by
-default) that any leaf, a mission script or a remote command writes. Each
+default) that any leaf or a mission ``Script`` writes (homing has no command
+that writes a running mission's blackboard from outside yet). Each
 tick the decorator copies the latest update (else the input goal) to its
 output and ticks its child, returning the child's status, as Nav2 does.
 """

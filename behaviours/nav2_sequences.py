@@ -76,7 +76,7 @@ class PersistentSequence(Composite):
     while children succeed (a skipped one is passed over), writing the index
     of the next one; a RUNNING child makes the node RUNNING; a FAILURE
     writes 0 and fails the node; the end writes 0 and succeeds. Another node
-    (or a remote command) may write the entry to jump to a child.
+    (a ``Script``, say) may write the entry to jump to a child.
     """
 
     def __init__(self, name: str, children: Seq[Behaviour], index_key: str):

@@ -3,7 +3,8 @@
 Semantics from ``nav2_behavior_tree/plugins/control/pause_resume_controller.cpp``
 (and its header's state machine). Nav2 takes its requests as two ROS
 ``std_srvs/Trigger`` services; homing has no services, so a request is a
-blackboard entry set to true (by a leaf, a ``Script``, or a remote command):
+blackboard entry set to true (by a leaf or a ``Script``; nothing writes a
+running mission's blackboard from outside yet):
 ``pause_key`` asks to pause, ``resume_key`` to resume; the node takes the
 request (sets the entry back to false) on its next tick. As with Nav2's
 services, a pause is taken unless already PAUSED, a resume only when PAUSED.

@@ -117,7 +117,7 @@ RULES: dict[str, Rule] = {
     "GoalUpdater": Rule("GoalUpdater", {"input_goal": ("input_goal", "key"), "input_goals": ("input_goals", "key"),
                                         "output_goal": ("output_goal", "key"), "output_goals": ("output_goals", "key")},
                         kind="decorator", source="Nav2",
-                        note="the update comes from the blackboard entry /nav/goal_update (a leaf or remote command "
+                        note="the update comes from the blackboard entry /nav/goal_update (a leaf or a Script "
                              "writes it), not a ROS topic"),
     "GoalUpdatedController": Rule("GoalUpdatedController", {"goal": ("goal_key", "key"), "goals": ("goals_key", "key")},
                                   kind="decorator", source="Nav2"),
