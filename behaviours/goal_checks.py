@@ -103,12 +103,19 @@ class GoalReached(HomingBehaviour):
 
     def update(self) -> Status:
         goal, pose = as_pose(self.read(self.goal_key)), self.read(POSE_KEY)
-        if goal is None or pose is None:
-            self.feedback_message = "no goal" if goal is None else "no robot pose"
-            return Status.FAILURE
-        d = math.hypot(goal.x - pose.x, goal.y - pose.y)
-        self.feedback_message = f"{d:.2f} m from the goal"
-        return Status.SUCCESS if d <= self.xy_tolerance else Status.FAILURE
+        status, self.feedback_message = near(goal, pose, self.xy_tolerance, ("no goal", "no robot pose"), "from the goal")
+        return status
+
+
+def near(a: Any, b: Any, tolerance: float, missing: tuple[str, str], what: str) -> tuple[Status, str]:
+    """(SUCCESS when poses ``a`` and ``b`` are within ``tolerance`` [m] in x, y, else FAILURE; a feedback message).
+
+    A missing pose (None) fails, with ``missing[0]`` or ``missing[1]`` as the message.
+    """
+    if a is None or b is None:
+        return Status.FAILURE, missing[0] if a is None else missing[1]
+    gap = math.hypot(a.x - b.x, a.y - b.y)
+    return (Status.SUCCESS if gap <= tolerance else Status.FAILURE), f"{gap:.2f} m {what}"
 
 
 @register("FailureIs", kind="condition")

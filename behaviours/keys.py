@@ -25,3 +25,5 @@ HOME_DISTANCE_KEY = "/energy/distance_home"  # [m] planned travel distance to th
 CYCLES_KEY = "/mission/cycles"  # int: dock cycles completed
 IDLE_KEY = "/runner/idle_until"  # [s] adapter time until which the tree has nothing to do (set per tick)
 SAVE_KEY = "/runner/save"  # bool: a leaf asks the runner to save a snapshot to the run directory after this tick
+GOAL_UPDATE_KEY = "/nav/goal_update"  # a new goal pose (map) for GoalUpdater, written by a leaf or a Script
+GOALS_UPDATE_KEY = "/nav/goals_update"  # a new list of goal poses for GoalUpdater

@@ -72,11 +72,11 @@ class Importer:
     # -- problems ------------------------------------------------------------------------
     def error(self, el: Element, message: str, attr: str | None = None) -> None:
         line, col = el.where(attr)
-        self.errors.append(UserError(message, self.doc.path, line, col))
+        self.errors.append(UserError(message, self.doc.file_of(self.current), line, col))
 
     def note(self, el: Element, message: str, attr: str | None = None) -> None:
         line, col = el.where(attr)
-        self.notes.append(f"{self.doc.path.name}:{line}:{col}: {message}")
+        self.notes.append(f"{self.doc.file_of(self.current).name}:{line}:{col}: {message}")
 
     def _tree_name(self, tree_id: str) -> str:
         name = re.sub(r"\W", "_", tree_id)
@@ -277,7 +277,7 @@ class Importer:
         if rule.homing == "switch":
             body.update(self.switch(el, tag))
         watcher = False
-        if rule.homing in ("GoalUpdated", "GlobalUpdatedGoal") and not ({"goal", "goals"} & set(el.attrs)):
+        if rule.homing in ("GoalUpdated", "GlobalUpdatedGoal", "GoalUpdatedController") and not ({"goal", "goals"} & set(el.attrs)):
             body.update(goal_key="goal", goals_key="goals")  # Nav2 watches both by default
             watcher = True
         if rule.homing == "speed_controller" and "goal" not in el.attrs:
@@ -429,10 +429,13 @@ def _typed_text(text: str) -> Any:
     return text
 
 
-def import_xml(path: str | Path) -> Imported:
-    """Convert a BT.CPP XML file to a homing mission (raises :class:`UserErrors` listing every problem)."""
+def import_xml(path: str | Path, tree: str | None = None) -> Imported:
+    """Convert a BT.CPP XML file (and the files it includes) to a homing mission, ``tree`` its main tree's ID.
+
+    Raises :class:`UserErrors` listing every problem.
+    """
     load_nodes()
-    doc = read(path)
+    doc = read(path, tree)
     importer = Importer(doc)
     mission = importer.convert()
     if doc.header is None:
@@ -459,7 +462,7 @@ def _unwritten(mission: dict[str, Any]) -> tuple[list[str], set[str]]:
         problems = Problems()
         compiler = Compiler(load_source(probe, None, problems), problems)
         compiler.compile()
-    watchers = ("(GoalUpdated)", "(GlobalUpdatedGoal)", "(speed_controller)")
+    watchers = ("(GoalUpdated)", "(GlobalUpdatedGoal)", "(GoalUpdatedController)", "(speed_controller)")
     unwritten = sorted({r[0] for r in compiler.reads if r[0] not in compiler.writes})
     return unwritten, {r[0] for r in compiler.reads if not r[3].endswith(watchers)}
 

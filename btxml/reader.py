@@ -8,9 +8,20 @@ Positions come from expat itself while it parses (the start of each
 element's tag); an attribute's position is found in the tag's text, so an
 importer can point at ``file:line:col`` of the very attribute it rejects.
 
+A project split over many files is read as BehaviorTree.CPP's XMLParser
+reads it: every ``<include path="…"/>`` of a file is loaded first, its path
+relative to the directory of the file that includes it (so a child file
+reaches its parent's sibling with ``../``), recursively; the trees of all the
+files are registered together, and the main tree is the first file's
+``main_tree_to_execute`` (or the only tree). homing refuses what BT.CPP would
+loop on or overwrite silently: an include cycle, a missing file and a tree ID
+defined twice are ``file:line:col`` errors at the offending element.
+``ros_pkg`` includes need ROS's package index and are refused.
+
 The result is a :class:`Document`: the format (3 or 4), the main tree's ID,
-every ``<BehaviorTree>`` by ID, the ``<TreeNodesModel>`` entries, and the
-homing header (the comment ``homing export`` writes) when there is one.
+every ``<BehaviorTree>`` by ID (and the file it came from), the
+``<TreeNodesModel>`` entries, and the homing header (the comment ``homing
+export`` writes) when there is one.
 """
 
 from __future__ import annotations
@@ -60,6 +71,11 @@ class Document:
     models: dict[str, Element]
     header: dict[str, Any] | None
     root: Element
+    files: dict[str, Path] = field(default_factory=dict)  # tree ID -> the file that defines it
+
+    def file_of(self, tree_id: str) -> Path:
+        """The file a tree was read from (the first file when it is not an included one)."""
+        return self.files.get(tree_id, self.path)
 
 
 class _Builder:
@@ -160,50 +176,103 @@ def _article(kind: str) -> str:
     return {"entities": "an entity", "dtd": "a DTD", "externalreference": "an external reference"}.get(kind, kind)
 
 
-def read(path: str | Path) -> Document:
-    """Read a BT.CPP XML file into a :class:`Document` (``<root>``, its trees and models)."""
+def read(path: str | Path, tree: str | None = None) -> Document:
+    """Read a BT.CPP XML file and the files it includes into a :class:`Document`.
+
+    ``tree`` picks the main tree by ID (``homing import --tree``); without it
+    the first file's ``main_tree_to_execute`` does, or the only tree there is.
+    """
     p = Path(path)
-    root, comments = parse(p)
-    if root.tag != "root":
-        raise UserError(f"expected <root> (a BehaviorTree.CPP file), found <{root.tag}>", p, root.line, root.col)
+    project = _Project()
+    root, comments = project.load(p, [])
     fmt_text = root.attrs.get("BTCPP_format", "3")
-    if fmt_text not in ("3", "4"):
-        line, col = root.where("BTCPP_format")
-        raise UserError(f"BTCPP_format '{fmt_text}': homing reads formats 3 and 4", p, line, col)
-    trees: dict[str, Element] = {}
-    models: dict[str, Element] = {}
-    for child in root.children:
-        if child.tag == "BehaviorTree":
-            tree_id = child.attrs.get("ID", "")
-            if not tree_id and len([c for c in root.children if c.tag == "BehaviorTree"]) > 1:
-                raise UserError("<BehaviorTree> needs an ID when there are several", p, child.line, child.col)
-            tree_id = tree_id or "MainTree"
-            if tree_id in trees:
-                raise UserError(f"duplicate <BehaviorTree ID=\"{tree_id}\">", p, *child.where("ID"))
-            if len(child.children) != 1:
-                raise UserError(f"<BehaviorTree ID=\"{tree_id}\"> needs exactly one root node, not {len(child.children)}",
-                                p, child.line, child.col)  # fmt: skip
-            trees[tree_id] = child
-        elif child.tag == "TreeNodesModel":
-            for model in child.children:
-                if "ID" in model.attrs:
-                    models[model.attrs["ID"]] = model
-        elif child.tag == "include":
-            raise UserError("<include>: homing imports one file; merge the included trees into it", p, child.line, child.col)
-        else:
-            raise UserError(f"unexpected <{child.tag}> in <root> (expected <BehaviorTree> or <TreeNodesModel>)",
-                            p, child.line, child.col)  # fmt: skip
-    if not trees:
+    if not project.trees:
         raise UserError("no <BehaviorTree> in the file", p, root.line, root.col)
-    main = root.attrs.get("main_tree_to_execute", "")
+    trees = {tid: el for tid, (el, _) in project.trees.items()}
+    files = {tid: f for tid, (_, f) in project.trees.items()}
+    main = tree or root.attrs.get("main_tree_to_execute", "")
+    if tree is not None and tree not in trees:
+        raise UserError(f"--tree {tree}: no <BehaviorTree> with that ID (there are: {', '.join(trees)})", p)
     if not main:
         if len(trees) > 1:
-            raise UserError("several trees and no main_tree_to_execute: which one runs?", p, root.line, root.col)
+            raise UserError(f"several trees and no main_tree_to_execute: pick one with --tree ({', '.join(trees)})",
+                            p, root.line, root.col)  # fmt: skip
         main = next(iter(trees))
     if main not in trees:
         line, col = root.where("main_tree_to_execute")
         raise UserError(f"main_tree_to_execute='{main}' names no <BehaviorTree> (there are: {', '.join(trees)})", p, line, col)
-    return Document(p, int(fmt_text), main, trees, models, _header(comments, p), root)
+    return Document(p, int(fmt_text), main, trees, project.models, _header(comments, p), root, files)
+
+
+class _Project:
+    """The files of one BT.CPP project, loaded include by include as BT.CPP's XMLParser does."""
+
+    def __init__(self) -> None:
+        self.trees: dict[str, tuple[Element, Path]] = {}
+        self.models: dict[str, Element] = {}
+        self.loaded: set[Path] = set()
+
+    def load(self, p: Path, chain: list[Path]) -> tuple[Element, list[str]]:
+        """Read one file (after the files it includes); ``chain`` is the files including it, outermost first."""
+        root, comments = parse(p)
+        self.loaded.add(p.resolve())
+        if root.tag != "root":
+            raise UserError(f"expected <root> (a BehaviorTree.CPP file), found <{root.tag}>", p, root.line, root.col)
+        fmt_text = root.attrs.get("BTCPP_format", "3")
+        if fmt_text not in ("3", "4"):
+            line, col = root.where("BTCPP_format")
+            raise UserError(f"BTCPP_format '{fmt_text}': homing reads formats 3 and 4", p, line, col)
+        for child in root.children:
+            if child.tag == "include":
+                self.include(p, child, [*chain, p])
+        several = len([c for c in root.children if c.tag == "BehaviorTree"]) > 1
+        for child in root.children:
+            if child.tag == "BehaviorTree":
+                self.tree(p, child, several)
+            elif child.tag == "TreeNodesModel":
+                for model in child.children:
+                    if "ID" in model.attrs:
+                        self.models[model.attrs["ID"]] = model
+            elif child.tag != "include":
+                raise UserError(f"unexpected <{child.tag}> in <root> (expected <BehaviorTree>, <TreeNodesModel> "
+                                "or <include>)", p, child.line, child.col)  # fmt: skip
+        return root, comments
+
+    def include(self, p: Path, el: Element, chain: list[Path]) -> None:
+        """Follow ``<include path="…"/>``, relative to the including file's directory."""
+        if "ros_pkg" in el.attrs:
+            raise UserError("<include ros_pkg=…> needs ROS's package index: give a path relative to this file",
+                            p, *el.where("ros_pkg"))  # fmt: skip
+        text = el.attrs.get("path", "").strip()
+        if not text:
+            raise UserError("<include> needs a path=\"…\" attribute", p, el.line, el.col)
+        target = Path(text) if Path(text).is_absolute() else p.parent / text
+        line, col = el.where("path")
+        resolved = target.resolve()
+        names = [c.resolve() for c in chain]
+        if resolved in names:
+            cycle = " -> ".join(str(c) for c in chain[names.index(resolved):])
+            raise UserError(f"include cycle: {cycle} -> {target}", p, line, col)
+        if resolved in self.loaded:
+            return  # included twice (a diamond): its trees are registered already
+        if not target.is_file():
+            what = "is a directory, not an XML file" if target.is_dir() else "no such file"
+            raise UserError(f"<include path=\"{text}\">: {what} ({target})", p, line, col)
+        self.load(target, chain)
+
+    def tree(self, p: Path, child: Element, several: bool) -> None:
+        tree_id = child.attrs.get("ID", "")
+        if not tree_id and several:
+            raise UserError("<BehaviorTree> needs an ID when there are several", p, child.line, child.col)
+        tree_id = tree_id or "MainTree"
+        if tree_id in self.trees:
+            first_el, first_file = self.trees[tree_id]
+            raise UserError(f"duplicate <BehaviorTree ID=\"{tree_id}\"> (first at {first_file}:{first_el.line}:"
+                            f"{first_el.col})", p, *child.where("ID"))  # fmt: skip
+        if len(child.children) != 1:
+            raise UserError(f"<BehaviorTree ID=\"{tree_id}\"> needs exactly one root node, not {len(child.children)}",
+                            p, child.line, child.col)  # fmt: skip
+        self.trees[tree_id] = (child, p)
 
 
 def _header(comments: list[str], path: Path) -> dict[str, Any] | None:

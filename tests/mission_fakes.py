@@ -144,3 +144,12 @@ def make_nothing(seed: int = 0) -> str:
 
 def make_robot_failing(seed: int = 0) -> FakeRobot:
     raise RuntimeError("the serial port /dev/ttyUSB0 is busy")
+
+
+def board(*keys: str) -> py_trees.blackboard.Client:
+    """A fresh blackboard (every entry cleared) and a client that may write ``keys``."""
+    py_trees.blackboard.Blackboard.storage.clear()
+    client = py_trees.blackboard.Client(name="test-board")
+    for key in keys:
+        client.register_key(key=key, access=py_trees.common.Access.WRITE)
+    return client

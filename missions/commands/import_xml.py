@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from homing.missions.commands._args import output_folder
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
@@ -16,8 +18,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "as homing's. A node with no equivalent is a file:line:col error; attributes homing does not use are "
         "listed as notes in the mission's header.",
     )
-    parser.add_argument("tree", metavar="TREE.xml")
+    parser.add_argument("tree", metavar="TREE.xml", help="the file to import; its <include path> files are read too, "
+                        "relative to the including file as BehaviorTree.CPP does")
     parser.add_argument("-o", "--output", metavar="MISSION.yaml", help="write the mission here (default: stdout)")
+    parser.add_argument("--tree", metavar="ID", dest="main_tree", help="the main tree, for a file of several trees without "
+                        "main_tree_to_execute (or to run another one)")
+    parser.add_argument("--scaffold", metavar="DIR", type=output_folder("--scaffold"),
+                        help="write a Python package of placeholder plugin nodes for the custom nodes homing does not "
+                        "know (ports from <TreeNodesModel> or the uses); after 'pip install DIR' the mission checks and "
+                        "runs, and you fill the nodes in")
     parser.set_defaults(func=run)
 
 
@@ -32,7 +41,13 @@ def run(args: argparse.Namespace) -> int:
 
     if args.output and Path(args.output).is_dir():
         raise UserError("is a directory: give the mission file to write", args.output)
-    imported = import_xml(args.tree)
+    if args.scaffold is not None:
+        from homing.btxml.scaffold import scaffold
+
+        module, nodes = scaffold(Path(args.tree), args.main_tree, args.scaffold)
+        print(f"scaffolded {len(nodes)} custom nodes in {args.scaffold} ({module}): {', '.join(nodes) or 'none needed'}"
+              + (f"; install them with: pip install {args.scaffold}" if nodes else ""), file=sys.stderr)
+    imported = import_xml(args.tree, args.main_tree)
     if not args.output:
         sys.stdout.write(imported.text)
         return 0
