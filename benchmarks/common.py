@@ -15,6 +15,7 @@ from homing.atomic import atomic_write
 
 WORLDS_ENV = "HOMING_WORLDS"  # a folder of map_server floor plans, searched first
 PUBLIC_PLANS = ("room", "corner", "corridor", "loop", "loop_with_corridor", "room_with_corner")
+EXTRA_PLANS = ("explorebench_room_1", "explorebench_room_2", "explorebench_room_3", "simple_rooms", "maze")  # in extra/
 
 
 def plan_folders() -> list[Path]:
@@ -57,6 +58,11 @@ def find_plans(names: Sequence[str] = PUBLIC_PLANS, *, why: str = "",
     print(f"note: no public floor plans found (looked in {looked}; set {WORLDS_ENV}=DIR)"
           + (f": {why}" if why else ""), file=sys.stderr)
     return {}
+
+
+def find_extra_plans() -> dict[str, Path]:
+    """``{name: YAML}`` of the five more public plans (``extra/`` beside the six), where found; quiet when not."""
+    return find_plans(EXTRA_PLANS, folders=[f / "extra" for f in plan_folders()], quiet=True)
 
 
 def _fmt(value: Any) -> str:

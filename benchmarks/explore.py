@@ -29,8 +29,8 @@ how good a map the run built), and bumper presses. Ratios to
 ``nearest`` and to ``explore_lite`` are computed run by run (same world,
 same seed), then the median is reported.
 
-Worlds default to the bundled ``lab`` and the six public floor plans when
-found (``$HOMING_WORLDS``, or ``shared/worlds`` beside the working directory or
+Worlds default to the bundled ``lab``, the six public floor plans and the
+five more of their ``extra/`` folder when found (``$HOMING_WORLDS``, or ``shared/worlds`` beside the working directory or
 its parent), plus ``--generated`` N plans of each generated kind
 (:mod:`homing.sim.buildings`: ``office:1..N``, ``hospital:1..N``,
 ``slam_office:1..N``), so the median is not decided by open halls. A second
@@ -54,7 +54,13 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from homing.benchmarks.common import find_plans, print_table, progress_bar, write_json
+from homing.benchmarks.common import (
+    find_extra_plans,
+    find_plans,
+    print_table,
+    progress_bar,
+    write_json,
+)
 from homing.benchmarks.engine import (
     add_engine_arguments,
     engine_from_args,
@@ -109,13 +115,16 @@ class RunResult:
 
 GENERATED = ("office", "hospital", "slam_office")  # homing.sim.buildings' kinds, run by --generated
 KIND_OF_PLAN = {"room": "hall", "corner": "hall", "lab": "hall", "loop": "loop", "loop_with_corridor": "loop",
-                "corridor": "corridor", "room_with_corner": "corridor"}  # the public blueprints' kinds
+                "corridor": "corridor", "room_with_corner": "corridor",  # the public blueprints' kinds
+                "explorebench_room_1": "rooms", "explorebench_room_2": "rooms", "simple_rooms": "rooms",
+                "explorebench_room_3": "rings", "maze": "maze"}  # the five more (extra/)
 
 
 def world_specs(names: list[str] | None, generated: int = 0) -> list[str]:
-    """World specs to run: the given ones, or ``lab`` plus the public floor plans found; plus ``generated`` plans
-    of each generated kind (seeds 1..N)."""
-    plans = list(names) if names else ["lab", *sorted(str(p) for p in find_plans(why="exploring lab only").values())]
+    """World specs to run: the given ones, or ``lab`` plus the public floor plans found (the six and the five
+    more of ``extra/``); plus ``generated`` plans of each generated kind (seeds 1..N)."""
+    public = [*find_plans(why="exploring lab only").values(), *find_extra_plans().values()]
+    plans = list(names) if names else ["lab", *sorted(str(p) for p in public)]
     return plans + [f"{kind}:{seed}" for kind in GENERATED for seed in range(1, generated + 1)]
 
 

@@ -27,7 +27,9 @@ estimate and the gaps; the same when the others were given up after the
 robot stood at them and looked (``not_cleared``: the lidar cannot see in).
 Frontiers given up before it looked (no progress, unreachable, cut off…):
 done *incomplete* (``ExploreStep.gave_up`` > 0) — the caller reports it as
-such, not as explored, and may :meth:`Explorer.forgive` them to try again. A site the
+such, not as explored, and may :meth:`Explorer.forgive` them to try again;
+a place given up again on ``RETRY_ROUNDS`` retry rounds is given up for
+good, its reason saying so, and no longer keeps exploration incomplete. A site the
 costmap still reaches but the strategy declined (too small for its rule) is
 visited anyway: the robot stands against it, or for a door seen only at a
 grazing angle (a peek site) within ``PEEK`` of it, to look through. A site
@@ -74,6 +76,7 @@ BLACKLIST_RADIUS = 0.5  # [m]
 EXPLORED_RADIUS = 0.35  # [m] a goal with no unknown cell this close has been seen
 MAX_ARRIVALS = 2  # a place reached this often with its frontier still there is blacklisted (not_cleared)
 LOOKED_AT = "not_cleared"  # the one reason a place is given up after the robot stood at it and looked
+RETRY_ROUNDS = 2  # rounds a place given up before the robot looked at it is tried again, before it is given up for good
 CUT_OFF_TRIES = 4  # failures in a row on frontiers the costmap cuts off before they are given up (one recovery round)
 
 
@@ -118,6 +121,7 @@ class Explorer:
         self._declined: FrontierSite | None = None  # the site the current goal visits though the strategy declined it
         self.goals_chosen = 0
         self.retries = 0  # times the places given up were tried again (forgive)
+        self.rounds: list[tuple[float, float, int]] = []  # (x, y) [m] of places forgiven and how many times
         self._best_distance = math.inf
         self._last_progress = 0.0
         self._last_choice = -math.inf
@@ -146,14 +150,30 @@ class Explorer:
     def forgive(self) -> int:
         """Try again every place given up before the robot looked at it (a later round, after the costmap was
         cleared): they leave the blacklist; returns how many. Places looked at from where they are
-        (``not_cleared``) stay given up, and gaps narrower than the robot are measured on the map each time."""
-        keep = [i for i, why in enumerate(self.blacklist_reasons) if why == LOOKED_AT]
-        n = len(self.blacklist) - len(keep)
-        self.blacklist = [self.blacklist[i] for i in keep]
-        self.blacklist_reasons = [self.blacklist_reasons[i] for i in keep]
+        (``not_cleared``) stay given up, as does a place given up again on each of ``RETRY_ROUNDS`` rounds:
+        then for good, its reason saying so (``no_path, 3 rounds``); gaps narrower than the robot are measured
+        on the map each time."""
+        keep, forgiven = [], 0
+        for (x, y), why in zip(self.blacklist, self.blacklist_reasons, strict=True):
+            if settled(why):
+                keep.append(((x, y), why))
+                continue
+            past = next((i for i, (px, py, _) in enumerate(self.rounds)
+                         if math.hypot(px - x, py - y) <= self.blacklist_radius), None)
+            n = 1 if past is None else self.rounds[past][2] + 1
+            if past is None:
+                self.rounds.append((x, y, n))
+            else:
+                self.rounds[past] = (x, y, n)
+            if n > RETRY_ROUNDS:
+                keep.append(((x, y), f"{why}, {n} rounds"))
+            else:
+                forgiven += 1
+        self.blacklist = [p for p, _ in keep]
+        self.blacklist_reasons = [why for _, why in keep]
         self.cut_offs, self.goal, self.choice, self._declined = 0, None, None, None
         self.retries += 1
-        return n
+        return forgiven
 
     def given_up(self) -> tuple[GivenUp, ...]:
         """The places given up so far (blacklisted), with why; narrow gaps are in :attr:`report`."""
@@ -215,7 +235,7 @@ class Explorer:
         report = report.given_up(len(open_sites))
         self.report = report
         if not open_sites or getattr(self.strategy, "ends_without_goal", False):
-            looked = [p for p, why in zip(self.blacklist, self.blacklist_reasons, strict=True) if why == LOOKED_AT]
+            looked = [p for p, why in zip(self.blacklist, self.blacklist_reasons, strict=True) if settled(why)]
             unlooked = sum(site_blacklisted(s, grid, self.blacklist, self.blacklist_radius)
                            and not site_blacklisted(s, grid, looked, self.blacklist_radius) for s in report.reachable)
             return ExploreStep(None, True, True, None, report=report, gave_up=int(unlooked))
@@ -308,6 +328,12 @@ class Explorer:
             distance=distance, excluded=excluded, rng=self.rng, current_goal=current,
             robot_radius=self.robot_radius,
         )
+
+
+def settled(reason: str) -> bool:
+    """Whether a place given up for ``reason`` is given up for good: the robot looked at it from where it is, or
+    it was given up again on every retry round (:meth:`Explorer.forgive`)."""
+    return reason == LOOKED_AT or reason.endswith(" rounds")
 
 
 def _beside(distance: np.ndarray, robot_radius: float, resolution: float) -> np.ndarray:

@@ -105,3 +105,32 @@ def test_bench_persist_counts_a_robot_that_stays_away_from_its_dock_as_an_interv
     assert out["interventions"], "the robot left its dock for more than 30 s and no intervention was counted"
     assert all(why == "no dock for 0.00833333 h" for _, why in out["interventions"]), out["interventions"]
     assert out["time"] >= 240.0 - 1e-6  # and the bench carried on to its horizon after each
+
+
+def test_bench_persist_names_the_failure_that_sent_the_robot_to_error() -> None:
+    # The Error subtree runs as a recovery branch beside the leaf that failed: the bench counts Error time per
+    # Error node and that leaf's typed failure (its key on the board is already reset by the Error's own leaves).
+    from types import SimpleNamespace
+
+    import py_trees
+    from homing.benchmarks.persist import error_cause
+    from py_trees.common import Status
+
+    class Failed(py_trees.behaviour.Behaviour):
+        failure_reason = "no_path"
+
+        def update(self) -> Status:
+            return Status.FAILURE
+
+    class Running(py_trees.behaviour.Behaviour):
+        def update(self) -> Status:
+            return Status.RUNNING
+
+    navigate = py_trees.composites.Sequence("GoHome", memory=True, children=[Failed("NavigateToStaging")])
+    error = py_trees.composites.Sequence("MapHomeError", memory=True, children=[Running("Spin")])
+    root = py_trees.composites.Selector("MapHome", memory=True, children=[navigate, error])
+    root.tick_once()
+    assert error_cause(SimpleNamespace(mission=SimpleNamespace(root=root))) == "MapHomeError: NavigateToStaging no_path"
+    idle = py_trees.composites.Sequence("Idle", memory=True, children=[Running("Wait")])
+    idle.tick_once()
+    assert error_cause(SimpleNamespace(mission=SimpleNamespace(root=idle))) == "Error: no Error node running"

@@ -178,6 +178,17 @@ def test_explore_that_gave_up_reachable_frontiers_ends_incomplete_and_tries_them
     assert _tick(leaf, robot) == Status.RUNNING
     assert len(nav.goals) == tried + 1 and leaf.explorer.retries == 1
     assert "tried again 1×" in (leaf.end_report() or "")
+    # Given up again on every retry round, the places are given up for good, saying so, and that is the end.
+    from homing.mapping.explorer import RETRY_ROUNDS
+
+    incompletes, status = 1, Status.RUNNING
+    for _ in range(2000):
+        status = _tick(leaf, robot)
+        if status == Status.SUCCESS:
+            break
+        incompletes += status == Status.FAILURE and leaf.failure_reason == "incomplete"
+    assert status == Status.SUCCESS and incompletes == RETRY_ROUNDS + 1, (incompletes, leaf.feedback_message)
+    assert f"no_path, {RETRY_ROUNDS + 1} rounds" in leaf.feedback_message and bb.get("/explore/explored") is True
 
 
 def test_explore_succeeds_when_no_frontier_is_left_and_the_condition_agrees() -> None:
