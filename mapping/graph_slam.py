@@ -40,16 +40,15 @@ RPLIDAR's 360°), robot unknown. Variables: keyframe poses in ``map`` (the
   fit within ``CLOSURE_CONFIRM_WITHIN`` keyframes moves the map the same
   way (two false matches seldom agree).
 
-An ill-posed step never ends a run (Dellaert & Kaess, "Factor graphs for
-robot perception", 2017, §4 on QR against Cholesky for ill-conditioned
-systems): odometry across a gap of more than ``ODOM_GAP`` seconds (or an
+An ill-posed step never ends a run: odometry across a gap of more than ``ODOM_GAP`` seconds (or an
 increment whose σ would pass ``ODOM_SIGMA_MAX``) keeps only the weak
 ``ODOM_SIGMA_MAX`` between factor, so the chain stays connected and later
 closures can still move it; a fit whose covariance is not finite and
 positive definite (a degenerate scan) adds no factor; and if iSAM2's
 Cholesky elimination still finds the system indeterminate, the graph is
-rebuilt once with QR factorisation, which does not square the condition
-number. Each case is counted in :class:`Stats` (``skipped``, by reason).
+rebuilt once with QR factorisation, which works on the Jacobian instead of
+its square and so on the square root of the condition number (Dellaert &
+Kaess, "Factor graphs for robot perception", 2017). Each case is counted in :class:`Stats` (``skipped``, by reason).
 
 Without closures (``closure_radius=0``) this is incremental scan matching:
 the "scan matching" baseline of Kümmerle et al. 2009. At the end,
@@ -174,11 +173,11 @@ class Stats:
     closure_attempts: int = 0
     skipped: dict[str, int] = field(default_factory=dict)  # factors weakened or left out, by reason
     qr_rebuilds: int = 0  # times an indeterminate Cholesky elimination made the graph switch to QR
+    ms: list[float] = field(default_factory=list)  # wall time per scan [ms]
 
     def skip(self, reason: str) -> None:
         """Count one factor weakened or left out for ``reason``."""
         self.skipped[reason] = self.skipped.get(reason, 0) + 1
-    ms: list[float] = field(default_factory=list)  # wall time per scan [ms]
 
 
 def odometry_sigmas(delta: Pose2, path: float, turn: float) -> np.ndarray:
