@@ -265,10 +265,10 @@ def read_carmen(path: str | Path) -> RunLog:
     for m in parsed.messages:
         if isinstance(m, _Odom):
             twist = Twist2(m.v, m.w)
-            read_at = m.stamp
             if corrected and isinstance(previous, _Laser) and _same(m.pose, previous.odom):
-                src = m.pose  # the wheels start afresh from the corrected pose: no motion
+                src = m.pose  # the wheels start afresh from the corrected pose: no motion (freiburg-079 stamps it 0)
             else:
+                read_at = m.stamp
                 raw, src = _advance(raw, src, m.pose)
                 records.append(odometry_record(m.stamp, Odometry(m.stamp, raw, twist)))
         else:
