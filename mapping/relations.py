@@ -175,44 +175,60 @@ def _clock(t: float) -> str:
 def time_offset(relations: Sequence[Relation], stamps: Sequence[float], source: str | Path = "relations") -> float:
     """[s] to subtract from the relations' stamps to put them on the log's clock (``stamps``: its scans', ascending).
 
-    0 when both count time alike and most relation stamps fall inside the
-    log's span. Otherwise the offset that puts the most relation stamps
-    within ``ALIGN_BIN`` of a scan stamp, if it puts at least
+    The offset that puts the most relation stamps within ``ALIGN_BIN`` of a
+    scan stamp is taken when it stands out: it puts at least
     ``ALIGN_MIN_SHARE`` of them there and ``ALIGN_MARGIN`` times as many as
-    any other offset; else a UserError (``source``) naming the offset the
-    relations would need (the best found if it stands out, else the one
-    lining up both starts).
+    any other offset, 0 included. Otherwise 0 when both count time alike,
+    most relation stamps fall inside the log's span (relations from a
+    denser log than this one seldom fall on its scans) and no offset puts
+    most of them on scans where 0 does not; else a UserError (``source``)
+    naming the offset the relations would need (the best found if it
+    stands out, else the one lining up both starts).
     """
     rel = np.unique([t for r in relations for t in (r.t1, r.t2)])
     log = np.sort(np.asarray(stamps, dtype=float))
     if len(rel) == 0 or len(log) == 0:
         return 0.0
+    tried = np.unique(rel[np.linspace(0, len(rel) - 1, min(len(rel), ALIGN_SAMPLE)).round().astype(int)])
+    best, best_n, second_n = _best_offset(tried, log)
+    at_zero = int(np.sum(_on_scans(tried, log)))
+    clear = best_n >= ALIGN_MIN_SHARE * len(tried) and best_n >= ALIGN_MARGIN * second_n
+    if clear and (abs(best) <= ALIGN_BIN or best_n >= ALIGN_MARGIN * max(at_zero, 1)):
+        return 0.0 if abs(best) <= ALIGN_BIN else best
     inside = np.mean((rel >= log[0] - MATCH_TOLERANCE) & (rel <= log[-1] + MATCH_TOLERANCE))
-    same_clock = (np.median(rel) > EPOCH) == (np.median(log) > EPOCH)
-    if same_clock and inside >= ALIGN_MIN_SHARE:
+    elsewhere = best_n >= ALIGN_MIN_SHARE * len(tried) and best_n >= ALIGN_MARGIN * max(at_zero, 1)
+    if (np.median(rel) > EPOCH) == (np.median(log) > EPOCH) and inside >= ALIGN_MIN_SHARE and not elsewhere:
         return 0.0
-    tried = rel[np.linspace(0, len(rel) - 1, min(len(rel), ALIGN_SAMPLE)).round().astype(int)]
-    tried = np.unique(tried)
-    diff = (tried[:, None] - log[None, :]).ravel()  # every offset that puts a tried stamp on a scan stamp
-    who = np.repeat(np.arange(len(tried)), len(log))
-    best, best_n, second_n = 0.0, 0, 0
-    for shift in (0.0, ALIGN_BIN / 2):  # two grids, so that a cluster on a bin edge is whole in one of them
-        keys = np.floor((diff + shift) / ALIGN_BIN).astype(np.int64)
-        pairs = np.unique(np.column_stack([keys, who]), axis=0)  # each tried stamp once per offset
-        ks, counts = np.unique(pairs[:, 0], return_counts=True)
-        top = int(np.argmax(counts))
-        if counts[top] > best_n:
-            far = np.abs(ks - ks[top]) > 2
-            best_n, second_n = int(counts[top]), int(counts[far].max(initial=0))
-            best = float(np.median(diff[keys == ks[top]]))
-    if best_n >= ALIGN_MIN_SHARE * len(tried) and best_n >= ALIGN_MARGIN * second_n:
-        return best
-    # The offset to name: the best one if it stands out, else the one that lines up both starts.
+    # The offset to name: the best one if it stands out, else the one lining up both starts.
     need = best if best_n >= 2 and best_n >= ALIGN_MARGIN * second_n else float(rel[0] - log[0])
     raise UserError(f"the relations' stamps ({_clock(rel[0])}, {rel[0]:.2f}–{rel[-1]:.2f} s) do not fall on the "
                     f"log's scans ({_clock(log[0])}, {log[0]:.2f}–{log[-1]:.2f} s) and no offset aligns them "
                     f"unambiguously ({best_n} of {len(tried)} stamps on scans at best, {second_n} at another "
                     f"offset); give --relations-offset {need:.3f} if that is the offset", source)
+
+
+def _on_scans(t: np.ndarray, log: np.ndarray) -> np.ndarray:
+    """Which stamps ``t`` [s] lie within ``ALIGN_BIN`` of a scan stamp in ``log`` (ascending)."""
+    i = np.clip(np.searchsorted(log, t), 1, len(log) - 1) if len(log) > 1 else np.zeros(len(t), int)
+    near = np.minimum(np.abs(log[i] - t), np.abs(log[np.maximum(i - 1, 0)] - t))
+    return near <= ALIGN_BIN
+
+
+def _best_offset(tried: np.ndarray, log: np.ndarray) -> tuple[float, int, int]:
+    """The offset [s] putting most ``tried`` stamps on ``log``'s, how many it puts there, and the next offset's."""
+    diff = (tried[:, None] - log[None, :]).ravel()  # every offset that puts a tried stamp on a scan stamp
+    who = np.repeat(np.arange(len(tried), dtype=np.int64), len(log))
+    best, best_n, second_n = 0.0, 0, 0
+    for shift in (0.0, ALIGN_BIN / 2):  # two grids, so that a cluster on a bin edge is whole in one of them
+        keys = np.floor((diff + shift) / ALIGN_BIN).astype(np.int64)
+        pairs = np.unique((keys - keys.min()) * len(tried) + who)  # each tried stamp once per offset
+        ks, counts = np.unique(pairs // len(tried) + keys.min(), return_counts=True)
+        top = int(np.argmax(counts))
+        if counts[top] > best_n:
+            far = np.abs(ks - ks[top]) > 2
+            best_n, second_n = int(counts[top]), int(counts[far].max(initial=0))
+            best = float(np.median(diff[keys == ks[top]]))
+    return best, best_n, second_n
 
 
 def shifted(relations: Sequence[Relation], offset: float) -> list[Relation]:

@@ -95,6 +95,12 @@ def test_relations_in_epoch_time_are_put_on_a_relative_log_when_one_offset_does_
         pytest.approx(-EPOCH_START, abs=1e-6)
     # Relations on the log's own clock need nothing.
     assert time_offset(shifted(rel, EPOCH_START), stamps) == 0.0
+    # Relative relations counted from another start (37.4 s earlier) mostly fall inside the log too, but on
+    # no scan: the offset that puts them on the scans is taken, not 0 (which would interpolate every one).
+    late = shifted(rel, EPOCH_START - 37.4)
+    assert time_offset(late, stamps) == pytest.approx(37.4, abs=1e-6)
+    as_given = score(late, stamps, poses)
+    assert as_given.n > len(rel) / 2 and as_given.interpolated == as_given.n  # scored, each one between scans
 
 
 def test_an_ambiguous_offset_is_refused_naming_the_offset_needed() -> None:
@@ -107,6 +113,11 @@ def test_an_ambiguous_offset_is_refused_naming_the_offset_needed() -> None:
     assert "log's scans (relative, 0.00–299.50 s)" in msg
     assert msg.endswith(f"give --relations-offset {EPOCH_START + 20.0:.3f} if that is the offset")
     assert "\n" not in msg
+    # On the log's own clock but 20.25 s late: inside the log, yet between every two scans, while shifts of
+    # 20.25 s ± k·0.5 s put all on scans — refused too, not scored by interpolation.
+    late = [Relation(r.t1 - EPOCH_START + 20.25, r.t2 - EPOCH_START + 20.25, r.delta) for r in rel]
+    with pytest.raises(UserError, match=r"give --relations-offset 40.250 if that is the offset$"):
+        time_offset(late, stamps)
 
 
 def test_bench_slam_logs_aligns_or_refuses_a_relations_file_on_another_clock(
