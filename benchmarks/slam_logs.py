@@ -9,7 +9,17 @@ beside a log) or, without one, against relations drawn from the log's own
 corrected poses (a corrected log's ``ref`` records — an RBPF's estimate,
 so a floor of a few centimetres is the reference's own error, not the
 method's). Per log and method: translational error [m] and rotational
-error [deg], mean ± std and maximum, and the method's wall and CPU time per scan.
+error [deg], mean ± std and maximum, the same of the squared errors [m²,
+deg²], the relations scored (of them, interpolated) and those left
+unmatched with each one's reason, and the method's wall and CPU time per
+scan. A relations file on another clock than its log (absolute against
+relative stamps) is moved onto the log's clock when one offset clearly
+does it (:func:`homing.mapping.relations.time_offset`), or given one with
+``--relations-offset``; otherwise the command stops with the offset needed.
+
+A method that fails on a log (an exception inside it) is reported in its
+row and under ``failed`` in the JSON with the method's name; the command
+exits 0 when every log was read, 1 when a log could not be.
 
 Published figures (Kümmerle et al. 2009, their relations, the uncorrected
 logs; translational error [m]) are printed as reference rows where a log's
@@ -23,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import traceback
 from pathlib import Path
 from typing import Any
 
@@ -53,29 +64,51 @@ def log_name(path: str | Path) -> str:
     return name.removesuffix("-corrected")
 
 
-def score_method(log_path: str, method: str, relations_path: str | None) -> dict[str, Any]:
-    """One log through one method, scored (JSON keys of the issue); raises UserError on a bad log."""
+def score_method(log_path: str, method: str, relations_path: str | None, offset: float = 0.0) -> dict[str, Any]:
+    """One log through one method, scored (JSON keys of the issue); raises UserError on a bad log.
+
+    An exception inside the method is caught and returned as ``{"failed": …}``
+    (its type, message and where it was raised), so that one method's failure
+    costs neither the sweep nor the other methods' figures.
+    """
     from homing.logs import open_log
     from homing.logs.offline import run_method
-    from homing.mapping.relations import read_relations, relations_from_poses, score
+    from homing.mapping.relations import read_relations, relations_from_poses, score, shifted
 
     from homing.errors import UserError
 
     log = open_log(log_path)
     if relations_path:
-        relations, source = read_relations(relations_path), "file"
+        relations, source = shifted(read_relations(relations_path), offset), "file"
     else:
         ref = log.reference()
         if not ref:
             raise UserError("no relations file and no corrected poses to draw relations from", log_path)
         relations, source = relations_from_poses([t for t, _ in ref], [p for _, p in ref]), "corrected poses"
-    result = run_method(log, method)
+    try:
+        result = run_method(log, method)
+    except Exception as err:  # a method's failure is a figure of the sweep, not its end
+        where = traceback.extract_tb(err.__traceback__)[-1]
+        return {"failed": f"{type(err).__name__}: {' '.join(str(err).split())} "
+                          f"({Path(where.filename).name}:{where.lineno})"}
     e = score(relations, result.stamps, result.poses)
     return {"trans_err_mean_m": e.trans_mean, "trans_err_std_m": e.trans_std, "trans_err_max_m": e.trans_max,
             "rot_err_mean_deg": e.rot_mean, "rot_err_std_deg": e.rot_std, "rot_err_max_deg": e.rot_max,
+            "trans_sq_err_mean_m2": e.trans_sq_mean, "trans_sq_err_std_m2": e.trans_sq_std,
+            "trans_sq_err_max_m2": e.trans_sq_max, "rot_sq_err_mean_deg2": e.rot_sq_mean,
+            "rot_sq_err_std_deg2": e.rot_sq_std, "rot_sq_err_max_deg2": e.rot_sq_max,
             "seconds_per_scan": result.seconds_per_scan, "cpu_seconds_per_scan": result.cpu_seconds_per_scan,
-            "relations": e.n, "relations_missing": e.missing,
-            "relations_from": source, "scans": len(result.stamps), **result.info}
+            "relations": e.n, "relations_interpolated": e.interpolated, "relations_missing": e.missing,
+            "relations_unmatched": [{"t1": u.relation.t1, "t2": u.relation.t2, "reason": u.reason}
+                                    for u in e.unmatched],
+            "relations_from": source, "relations_offset_s": offset, "scans": len(result.stamps), **result.info}
+
+
+def scan_stamps(log_path: str) -> list[float]:
+    """The stamps [s] of a log's scans, ascending (the clock its relations must be on)."""
+    from homing.logs import open_log
+
+    return sorted(float(r["t"]) for r in open_log(log_path).of_kind("scan"))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -83,6 +116,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="logs to score (default: the five in ../shared/datasets/carmen/ when present)")
     parser.add_argument("--relations", action="append", metavar="FILE",
                         help="a relations file (t1 t2 x y z roll pitch yaw per line) per LOG, in order")
+    parser.add_argument("--relations-offset", action="append", type=float, metavar="SECONDS",
+                        help="seconds to subtract from each relations file's stamps, in order (default: found, "
+                             "when the file and its log count time differently)")
     parser.add_argument("--methods", nargs="+", default=list(METHOD_LABELS), choices=list(METHOD_LABELS),
                         help="methods to run (default: all)")
     add_engine_arguments(parser, workers=1)
@@ -108,19 +144,46 @@ def run(args: argparse.Namespace) -> int:
             relations.append(str(beside) if beside.is_file() else None)
         elif not Path(relations[i]).is_file():
             raise UserError("no such relations file", relations[i])
-    jobs = [(log, m, relations[i]) for i, log in enumerate(logs) for m in args.methods]
+    offsets = _offsets(logs, relations, list(args.relations_offset or []))
+    jobs = [(log, m, relations[i], offsets[i]) for i, log in enumerate(logs) for m in args.methods]
     with progress_bar("slam-logs", len(jobs)) as advance:
         outcomes = run_jobs(score_method, jobs, engine, lambda o: advance(_describe(o)))
     out, rows = summarise(outcomes)
     print_table("SLAM on real logs: relation errors (Kümmerle et al. 2009), mean±std and max",
                 ["log", "method", "trans m", "max m", "rot °", "max °", "ms/scan", "cpu ms"], rows)
+    print_table("Squared errors (mean±std) and the relations: scored (interpolated), unmatched",
+                ["log", "method", "trans² m²", "rot² °²", "scored", "interp", "unmatched"], _second(out))
+    _print_unmatched(out)
     write_json(args.json, out)
     return 0 if not out["failed"] else 1
 
 
+def _offsets(logs: list[str], relations: list[str | None], given: list[float]) -> list[float]:
+    """Per log, [s] to subtract from its relations file's stamps: given, or found (UserError if ambiguous)."""
+    from homing.mapping.relations import read_relations, time_offset
+
+    from homing.errors import UserError
+
+    if len(given) > len([r for r in relations if r]):
+        raise UserError(f"{len(given)} --relations-offset values for {len([r for r in relations if r])} relations files")
+    out, k = [], 0
+    for log, rel in zip(logs, relations, strict=True):
+        if not rel:
+            out.append(0.0)
+            continue
+        relations_read = read_relations(rel)  # a malformed file stops here, with its line
+        if k < len(given):
+            out.append(given[k])
+        else:
+            out.append(time_offset(relations_read, scan_stamps(log), rel))
+        k += 1
+    return out
+
+
 def summarise(outcomes: list[Outcome]) -> tuple[dict[str, Any], list[list[Any]]]:
-    """The JSON (log → method → figures, plus ``failed``) and the table's rows, published rows after each log."""
+    """The JSON (log → method → figures, ``failed`` and ``method_failures``) and the table's rows (published after each log)."""
     out: dict[str, Any] = {}
+    failures: list[dict[str, Any]] = []
     rows: list[list[Any]] = []
     last = None
     for o in outcomes:
@@ -133,14 +196,46 @@ def summarise(outcomes: list[Outcome]) -> tuple[dict[str, Any], list[list[Any]]]
             continue
         r = o.result
         out.setdefault(log, {})[method] = r
+        if "failed" in r:
+            failures.append({"log": log, "method": method, "error": r["failed"]})
+            rows.append([log, METHOD_LABELS[method], f"failed: {r['failed']}"[:60]] + [""] * 5)
+            continue
         rows.append([log, METHOD_LABELS[method], _pm(r["trans_err_mean_m"], r["trans_err_std_m"], 3),
                      _num(r["trans_err_max_m"], 3), _pm(r["rot_err_mean_deg"], r["rot_err_std_deg"], 2),
                      _num(r["rot_err_max_deg"], 1), _num(1e3 * r["seconds_per_scan"], 1),
                      _num(1e3 * r["cpu_seconds_per_scan"], 1)])
     if last is not None:
         rows += _published(last)
-    out["failed"] = failures_table(outcomes)
+    out["failed"] = failures_table(outcomes)  # logs that could not be read
+    out["method_failures"] = failures  # a method that raised on a log that was read
     return out, rows
+
+
+def _second(out: dict[str, Any]) -> list[list[Any]]:
+    rows = []
+    for log, methods in out.items():
+        if not isinstance(methods, dict):
+            continue
+        for method, r in methods.items():
+            if "failed" in r:
+                continue
+            rows.append([log, METHOD_LABELS[method], _pm(r["trans_sq_err_mean_m2"], r["trans_sq_err_std_m2"], 4),
+                         _pm(r["rot_sq_err_mean_deg2"], r["rot_sq_err_std_deg2"], 2), r["relations"],
+                         r["relations_interpolated"], r["relations_missing"]])
+    return rows
+
+
+def _print_unmatched(out: dict[str, Any], most: int = 3) -> None:
+    """Each log's unmatched relations (the first method's: the stamps are the log's), ``most`` reasons at most."""
+    for log, methods in out.items():
+        if not isinstance(methods, dict):
+            continue
+        first = next((r for r in methods.values() if "failed" not in r), None)
+        if first is None or not first["relations_unmatched"]:
+            continue
+        missed = first["relations_unmatched"]
+        print(f"{log}: {len(missed)} relations unmatched, e.g. " +
+              "; ".join(f"{u['t1']:.3f}→{u['t2']:.3f}: {u['reason']}" for u in missed[:most]))
 
 
 def _published(log: str) -> list[list[Any]]:
@@ -162,4 +257,4 @@ def _pm(mean: float, std: float, decimals: int) -> str:
 
 def _describe(o: Outcome) -> str:
     head = f"{log_name(o.job[0])} {o.job[1]}"
-    return f"{head}: failed" if not o.ok else f"{head}: {o.result['trans_err_mean_m']:.3f} m"
+    return f"{head}: failed" if not o.ok or "failed" in o.result else f"{head}: {o.result['trans_err_mean_m']:.3f} m"

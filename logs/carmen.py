@@ -261,22 +261,23 @@ def read_carmen(path: str | Path) -> RunLog:
     src: Pose2 | None = None  # the last odometry sample as the log wrote it
     previous: _Laser | _Odom | None = None
     twist = Twist2()
+    read_at = -math.inf  # [s] stamp of the wheels' reading ``raw`` holds (a scan's tick carries it, not its own)
     for m in parsed.messages:
         if isinstance(m, _Odom):
             twist = Twist2(m.v, m.w)
             if corrected and isinstance(previous, _Laser) and _same(m.pose, previous.odom):
-                src = m.pose  # the wheels start afresh from the corrected pose: no motion
+                src = m.pose  # the wheels start afresh from the corrected pose: no motion (freiburg-079 stamps it 0)
             else:
+                read_at = m.stamp
                 raw, src = _advance(raw, src, m.pose)
                 records.append(odometry_record(m.stamp, Odometry(m.stamp, raw, twist)))
         else:
-            if not corrected and not has_odom_lines:
-                raw, src = _advance(raw, src, m.odom)
-            elif src is None:
-                raw, src = _advance(raw, src, m.odom)  # odometry starts at the first scan
+            if (not corrected and not has_odom_lines) or src is None:
+                raw, src = _advance(raw, src, m.odom)  # the scan line's odometry (or the first scan's)
+                read_at = m.stamp
             scan = _scan(m, no_return)
             records.append(scan_record(scan))
-            records.append(odometry_record(m.stamp, Odometry(m.stamp, raw, twist), m.stamp))
+            records.append(odometry_record(m.stamp, Odometry(min(read_at, m.stamp), raw, twist), m.stamp))
             if corrected:
                 records.append({"k": "ref", "t": m.stamp, "pose": [m.corrected.x, m.corrected.y, m.corrected.theta]})
         previous = m

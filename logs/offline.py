@@ -96,15 +96,16 @@ def run_method(log: RunLog, method: str, max_range: float = MAX_RANGE, resolutio
                                      closure_radius=0.0 if method != "graph" else GraphConfig().closure_radius,
                                      keyframe_distance=0.0 if method == "odometry" else GraphConfig().keyframe_distance,
                                      keyframe_angle=0.0 if method == "odometry" else GraphConfig().keyframe_angle))
-        for stamp, odom, scan in data:
-            slam.update(stamp, odom.pose, scan)
+        for _stamp, odom, scan in data:
+            slam.update(odom.stamp, odom.pose, scan)  # the wheels' reading's own time: a gap in them shows
         if method == "graph":
             slam.finish()
         stamps, poses = slam.trajectory()
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         st = slam.stats
         info = {"keyframes": len(slam.keyframes), "matches": st.matches, "match_failures": st.match_failures,
-                "closures": st.closures, "closure_attempts": st.closure_attempts}
+                "closures": st.closures, "closure_attempts": st.closure_attempts,
+                "factors_skipped": dict(sorted(st.skipped.items())), "qr_rebuilds": st.qr_rebuilds}
         grid = draw(data, stamps, poses, resolution)
     return OfflineResult(method, stamps, poses, grid, wall / max(n_scans, 1), cpu / max(n_scans, 1), info)
 

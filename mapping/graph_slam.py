@@ -40,6 +40,16 @@ RPLIDAR's 360°), robot unknown. Variables: keyframe poses in ``map`` (the
   fit within ``CLOSURE_CONFIRM_WITHIN`` keyframes moves the map the same
   way (two false matches seldom agree).
 
+An ill-posed step never ends a run: odometry across a gap of more than ``ODOM_GAP`` seconds (or an
+increment whose σ would pass ``ODOM_SIGMA_MAX``) keeps only the weak
+``ODOM_SIGMA_MAX`` between factor, so the chain stays connected and later
+closures can still move it; a fit whose covariance is not finite and
+positive definite (a degenerate scan) adds no factor; and if iSAM2's
+Cholesky elimination still finds the system indeterminate, the graph is
+rebuilt once with QR factorisation, which works on the Jacobian instead of
+its square and so on the square root of the condition number (Dellaert &
+Kaess, "Factor graphs for robot perception", 2017). Each case is counted in :class:`Stats` (``skipped``, by reason).
+
 Without closures (``closure_radius=0``) this is incremental scan matching:
 the "scan matching" baseline of Kümmerle et al. 2009. At the end,
 :meth:`GraphSlam.finish` re-optimises the whole graph in one batch
@@ -91,6 +101,10 @@ CLOSURE_RADIUS = 4.0  # [m] an old keyframe this near (plus the σ reach) is a c
 CLOSURE_GAP = 10.0  # [m] of path at least between a keyframe and the keyframes it may close a loop with
 CLOSURE_NEIGHBOURS = 4  # keyframes each side of the candidate in its submap
 ODOM_SIGMA = (0.02, 0.10, math.radians(1.0), 0.10, math.radians(2.0))  # [m], [m/m], [rad], [rad/rad], [rad/m]
+ODOM_SIGMA_MAX = (10.0, math.pi)  # [m, rad] an odometry factor's σ at most: across a gap, "somewhere near"
+ODOM_GAP = 5.0  # [s] odometry silent this long (readings this far apart): the wheels did not see the step
+ODOM_STALE = 1.0  # [s] no wheel reading this long before a scan: the front end predicts at constant velocity
+COVARIANCE_MAX = 1e4  # [m², rad²] a fit's covariance eigenvalue beyond this (or not finite) is no measurement
 MATCH_SIGMA_MIN = (0.01, math.radians(0.25))  # [m, rad] floors of a fit's σ (the ICP's own is optimistic)
 FIRST_SIGMA = (1e-3, 1e-3, 1e-3)  # [m, m, rad]
 CAUCHY_K = 2.3849
@@ -157,14 +171,20 @@ class Stats:
     match_failures: int = 0  # scans placed by odometry alone
     closures: int = 0
     closure_attempts: int = 0
+    skipped: dict[str, int] = field(default_factory=dict)  # factors weakened or left out, by reason
+    qr_rebuilds: int = 0  # times an indeterminate Cholesky elimination made the graph switch to QR
     ms: list[float] = field(default_factory=list)  # wall time per scan [ms]
+
+    def skip(self, reason: str) -> None:
+        """Count one factor weakened or left out for ``reason``."""
+        self.skipped[reason] = self.skipped.get(reason, 0) + 1
 
 
 def odometry_sigmas(delta: Pose2, path: float, turn: float) -> np.ndarray:
     """(3,) σ of an odometry increment (x, y [m], θ [rad]) from its path [m] and absolute turn [rad]."""
     floor, per_m, th_floor, th_per_rad, th_per_m = ODOM_SIGMA
-    s_xy = floor + per_m * path
-    s_th = th_floor + th_per_rad * turn + th_per_m * path
+    s_xy = min(floor + per_m * path, ODOM_SIGMA_MAX[0])
+    s_th = min(th_floor + th_per_rad * turn + th_per_m * path, ODOM_SIGMA_MAX[1])
     return np.array([s_xy, s_xy, s_th])
 
 
@@ -189,6 +209,16 @@ def closure_matcher(window: tuple[float, float]) -> CorrelativeMatcher:
                               prior_xy=3.0, prior_theta=math.radians(45.0), candidates=CLOSURE_CANDIDATES)
 
 
+def _isam(qr: bool = False) -> gtsam.ISAM2:
+    """iSAM2 as the graph runs it (Cholesky, or QR for an ill-conditioned graph)."""
+    params = gtsam.ISAM2Params()
+    params.setRelinearizeThreshold(0.01)
+    params.relinearizeSkip = 1
+    if qr:
+        params.setFactorization("QR")
+    return gtsam.ISAM2(params)
+
+
 class GraphSlam:
     """Keyframe pose-graph SLAM over odometry and scans (see module doc).
 
@@ -199,10 +229,9 @@ class GraphSlam:
 
     def __init__(self, config: GraphConfig | None = None) -> None:
         self.cfg = config or GraphConfig()
-        params = gtsam.ISAM2Params()
-        params.setRelinearizeThreshold(0.01)
-        params.relinearizeSkip = 1
-        self.isam = gtsam.ISAM2(params)
+        self.isam = _isam()
+        self._factors = gtsam.NonlinearFactorGraph()  # every factor iSAM2 holds, to rebuild it with QR
+        self._qr = False
         self.keyframes: list[Keyframe] = []
         self.places: list[_ScanPlace] = []
         self.stats = Stats()
@@ -219,6 +248,8 @@ class GraphSlam:
         self._submap: submap.Submap | None = None  # the front end's, built on first use after a change
         self._final: list[Pose2] | None = None
         self._pending: _Closure | None = None  # a wide closure awaiting a second to agree
+        self._gap = False  # the wheels missed part of the motion since the last keyframe
+        self._resumed = False  # the wheels spoke again after a gap since the last scan
 
     # -- input -------------------------------------------------------------
 
@@ -229,12 +260,16 @@ class GraphSlam:
             self._path += math.hypot(odom.x - prev.x, odom.y - prev.y)
             self._turn += abs(wrap_angle(odom.theta - prev.theta))
         if not self._history or stamp > self._history[-1][0]:
+            # A reading after more than ODOM_GAP of silence: the increment since spans motion nobody measured.
+            resumed = bool(self._history) and stamp - self._history[-1][0] > ODOM_GAP
+            self._gap, self._resumed = self._gap or resumed, self._resumed or resumed
             self._history.append((float(stamp), odom))
         if scan is None or scan.stamp <= self._last_scan:
             return False
         self._last_scan = scan.stamp
         t0 = time.perf_counter()
         at_scan = interpolate_pose(self._history, scan.stamp)
+        self._gap = self._gap or scan.stamp - self._history[-1][0] > ODOM_GAP  # the wheels are silent
         added = self._add_scan(scan, at_scan)
         self.stats.ms.append(1e3 * (time.perf_counter() - t0))
         return added
@@ -247,8 +282,12 @@ class GraphSlam:
             return True
         # The last scan's pose moved by the wheels since: the front end's prior.
         place = self.places[-1]
-        predicted = self._est[place.keyframe].compose(place.offset).compose(self._last_odom.between(odom))
-        self._last_odom = odom
+        # With the wheels silent (or back after a gap, their increment spanning all of it): constant velocity.
+        moved = self._last_odom.between(odom)
+        if self._resumed or scan.stamp - self._history[-1][0] > ODOM_STALE:
+            moved = self._last_step()
+        predicted = self._est[place.keyframe].compose(place.offset).compose(moved)
+        self._last_odom, self._resumed = odom, False
         fitted = self._fit_front(pts, predicted) if self.cfg.scan_matching else None
         pose = fitted.pose if fitted is not None else predicted
         last = self.keyframes[-1]
@@ -261,16 +300,21 @@ class GraphSlam:
         graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
         delta = last.odom.between(odom)
         sig = odometry_sigmas(delta, self._path, self._turn)
+        if self._gap or sig[0] >= ODOM_SIGMA_MAX[0] or sig[2] >= ODOM_SIGMA_MAX[1]:
+            # The wheels missed the step (or claim a path no σ model covers): keep the chain, say nothing more.
+            sig = np.array([ODOM_SIGMA_MAX[0], ODOM_SIGMA_MAX[0], ODOM_SIGMA_MAX[1]])
+            self.stats.skip("odometry gap: weak factor")
         self._path = self._turn = 0.0
+        self._gap = False
         graph.add(gtsam.BetweenFactorPose2(X(last.index), X(kf.index), to_gtsam(delta),
                                            gtsam.noiseModel.Diagonal.Sigmas(sig)))
-        if fitted is not None:
-            graph.add(gtsam.BetweenFactorPose2(X(last.index), X(kf.index), to_gtsam(rel),
-                                               self._noise(fitted.covariance, pose)))
+        noise = None if fitted is None else self._noise(fitted.covariance, pose)
+        if noise is not None:
+            graph.add(gtsam.BetweenFactorPose2(X(last.index), X(kf.index), to_gtsam(rel), noise))
         values.insert(X(kf.index), to_gtsam(pose))
         self.keyframes.append(kf)
         self.places.append(_ScanPlace(scan.stamp, kf.index, Pose2()))
-        self.isam.update(graph, values)
+        self._update(graph, values)
         self._est.append(from_gtsam(self.isam.calculateEstimatePose2(X(kf.index))))
         self._xy = np.vstack([self._xy, [self._est[-1].x, self._est[-1].y]])
         self._theta = np.append(self._theta, self._est[-1].theta)
@@ -279,6 +323,13 @@ class GraphSlam:
             self._refresh()
         return True
 
+    def _last_step(self) -> Pose2:
+        """The motion between the last two scans' poses (none before the second scan)."""
+        if len(self.places) < 2:
+            return Pose2()
+        a, b = self.places[-2], self.places[-1]
+        return self._est[a.keyframe].compose(a.offset).between(self._est[b.keyframe].compose(b.offset))
+
     def _start(self, scan: Scan, odom: Pose2, pts: np.ndarray) -> None:
         kf = Keyframe(0, scan.stamp, odom, pts, scan, 0.0, submap.scan_reference(pts))
         self.keyframes.append(kf)
@@ -286,7 +337,7 @@ class GraphSlam:
         graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
         graph.add(gtsam.PriorFactorPose2(X(0), to_gtsam(odom), gtsam.noiseModel.Diagonal.Sigmas(np.array(FIRST_SIGMA))))
         values.insert(X(0), to_gtsam(odom))
-        self.isam.update(graph, values)
+        self._update(graph, values)
         self._est.append(odom)
         self._xy = np.array([[odom.x, odom.y]])
         self._theta = np.array([odom.theta])
@@ -312,7 +363,12 @@ class GraphSlam:
             self.stats.matches += 1
         return found
 
-    def _noise(self, cov: np.ndarray, pose: Pose2, robust: bool = False) -> gtsam.noiseModel.Base:
+    def _noise(self, cov: np.ndarray, pose: Pose2, robust: bool = False) -> gtsam.noiseModel.Base | None:
+        """The factor's noise from a fit's (3, 3) covariance [map axes], or None (counted) if it is no measurement."""
+        w = np.linalg.eigvalsh(cov) if np.all(np.isfinite(cov)) else np.array([np.nan])
+        if not np.all(np.isfinite(w)) or w.min() < 0.0 or w.max() > COVARIANCE_MAX:
+            self.stats.skip("degenerate fit: no factor")
+            return None
         # The fit's covariance is of the pose in map axes; the factor's error lives in the pose's own frame.
         c = rotate_covariance(cov, pose.theta)
         c = c + np.diag([MATCH_SIGMA_MIN[0] ** 2, MATCH_SIGMA_MIN[0] ** 2, MATCH_SIGMA_MIN[1] ** 2])
@@ -338,7 +394,11 @@ class GraphSlam:
         if not d[j] <= self.cfg.closure_radius + CLOSURE_WINDOW_MAX[0]:
             return False
         # How far the graph itself says the new keyframe may be from where it has it.
-        window = closure_window(self.isam.marginalCovariance(X(kf.index)))
+        try:
+            window = closure_window(self.isam.marginalCovariance(X(kf.index)))
+        except RuntimeError:  # an indeterminate marginal: no bound on the search, so no closure here
+            self.stats.skip("indeterminate marginal: no closure search")
+            return False
         if not d[j] <= self.cfg.closure_radius + window[0]:
             return False
         self.stats.closure_attempts += 1
@@ -363,11 +423,31 @@ class GraphSlam:
         return True
 
     def _add_closure(self, c: _Closure) -> None:
+        noise = self._noise(c.fit.covariance, c.fit.pose, robust=True)
+        if noise is None:
+            return
         graph = gtsam.NonlinearFactorGraph()
-        graph.add(gtsam.BetweenFactorPose2(X(c.j), X(c.k), to_gtsam(c.rel),
-                                           self._noise(c.fit.covariance, c.fit.pose, robust=True)))
-        self.isam.update(graph, gtsam.Values())
+        graph.add(gtsam.BetweenFactorPose2(X(c.j), X(c.k), to_gtsam(c.rel), noise))
+        self._update(graph, gtsam.Values())
         self.stats.closures += 1
+
+    def _update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> None:
+        """iSAM2's update; on an indeterminate Cholesky elimination, the whole graph again with QR (once)."""
+        try:
+            self.isam.update(graph, values)
+        except RuntimeError as err:
+            if self._qr or "ndetermina" not in str(err):  # GTSAM spells it "Indeterminant" in places
+                raise
+            self._qr = True
+            self.stats.qr_rebuilds += 1
+            everything = gtsam.NonlinearFactorGraph(self._factors)
+            everything.push_back(graph)
+            start = gtsam.Values(values)
+            for i, p in enumerate(self._est):
+                start.insert(X(i), to_gtsam(p))
+            self.isam = _isam(qr=True)
+            self.isam.update(everything, start)
+        self._factors.push_back(graph)
 
     def _refresh(self) -> None:
         est = self.isam.calculateEstimate()
@@ -384,8 +464,15 @@ class GraphSlam:
             self._final = []
             return
         t0 = time.perf_counter()
-        graph = self.isam.getFactorsUnsafe()
-        result = gtsam.LevenbergMarquardtOptimizer(graph, self.isam.calculateEstimate()).optimize()
+        start = self.isam.calculateEstimate()
+        params = gtsam.LevenbergMarquardtParams()
+        if self._qr:
+            params.setLinearSolverType("MULTIFRONTAL_QR")
+        try:
+            result = gtsam.LevenbergMarquardtOptimizer(self._factors, start, params).optimize()
+        except RuntimeError:  # the batch could not improve on iSAM2's estimate: keep that
+            self.stats.skip("indeterminate batch: iSAM2's estimate kept")
+            result = start
         self._final = [from_gtsam(result.atPose2(X(k.index))) for k in self.keyframes]
         if self.stats.ms:
             self.stats.ms[-1] += 1e3 * (time.perf_counter() - t0)

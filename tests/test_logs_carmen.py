@@ -64,6 +64,9 @@ def test_corrected_log_gives_scans_wheel_odometry_and_reference(tmp_path: Path, 
     for k in range(3):
         d = scans[k].odom.pose.between(scans[k + 1].odom.pose)
         assert (d.x, d.y, d.theta) == pytest.approx((wheel[k].x, wheel[k].y, wheel[k].theta), abs=1e-5)
+    # Each scan's tick carries the wheels' reading it holds, stamped when the wheels gave it (not the stamp-0
+    # re-anchoring line): the first scan's own, then the last ODOM before each scan (so a gap in them shows).
+    assert [o.odom.stamp for o in scans] == pytest.approx([10.0, 10.9, 11.9, 12.9])
     ref = log.reference()
     assert [p for _, p in ref] == [pytest.approx(c) for c in corrected] or all(
         p.distance_to(c) < 1e-6 for (_, p), c in zip(ref, corrected, strict=True))
@@ -146,3 +149,14 @@ def test_shared_aces_log_reads_with_its_documented_facts() -> None:
             for k in range(len(scans) - 1)]
     e = np.hypot([p.x for p in errs], [p.y for p in errs])
     assert 0.03 < float(np.median(e)) < 0.08 and float(e.max()) < 0.5  # README: median ~5 cm, up to ~0.4 m
+
+
+def test_a_scan_with_no_wheel_reading_since_the_last_keeps_that_readings_stamp(tmp_path: Path) -> None:
+    """Two scans with only the stamp-0 re-anchoring line between them: the second holds the first's reading."""
+    pose = Pose2(2.0, 2.0, 0.0)
+    ranges = cast(pose, FLASER_ANGLES, 81.0)
+    path = tmp_path / "still.log"
+    path.write_text("\n".join([flaser_line(ranges, pose, pose, 10.0), odom_line(pose, 0.0),
+                               flaser_line(ranges, pose, pose, 11.0), odom_line(pose, 0.0)]) + "\n")
+    scans = [t.obs for t in open_log(path).ticks() if t.obs.scan is not None]
+    assert [o.odom.stamp for o in scans] == [10.0, 10.0]

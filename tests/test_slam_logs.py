@@ -135,7 +135,7 @@ def test_ray_and_the_pool_write_identical_slam_logs_json(tmp_path: Path) -> None
         assert main(["bench", "slam-logs", str(a), "--relations", str(rel), "--methods", "odometry", "scan_matching",
                      "--engine", engine, "--workers", "2", "--json", str(js)]) == 0
         data = json.loads(js.read_text())
-        for per_method in (v for k, v in data.items() if k != "failed"):
+        for per_method in (v for k, v in data.items() if k not in ("failed", "method_failures")):
             for figures in per_method.values():
                 for timing in ("seconds_per_scan", "cpu_seconds_per_scan"):
                     figures.pop(timing)
@@ -166,3 +166,34 @@ def test_bench_slam_gives_the_same_figures_in_a_worker_process_and_names_a_faile
     assert outs["pool"]["scan_matched"] is True and outs["pool"]["lab/loop"]["tags_seen"] >= 3
     assert outs["pool"]["bad+tags/loop"] == {"failed": True}
     assert [f["job"][4] for f in outs["pool"]["failed"]] == [0]  # the failed run's seed
+
+
+def test_a_method_that_raises_is_reported_and_the_sweep_exits_0(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """One method failing on a log that was read costs neither the sweep nor the exit code (issue 37)."""
+    import homing.logs.offline as offline
+
+    real = offline.run_method
+
+    def flaky(log: object, method: str, *args: object, **kwargs: object) -> object:
+        if method == "scan_matching":
+            raise RuntimeError("\nIndeterminate linear system detected while working near variable\nx875")
+        return real(log, method)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(offline, "run_method", flaky)
+    log, _ = synthetic_log(tmp_path, laps=0.3, seed=2)
+    (tmp_path / "raw.relations").write_text("1 3 0.5 0 0 0 0 0.1\n2 5 0.9 0.1 0 0 0 0.2\n")  # found beside the log
+    js = tmp_path / "out.json"
+    assert main(["bench", "slam-logs", str(log), "--methods", "odometry", "scan_matching", "--json", str(js)]) == 0
+    data = json.loads(js.read_text())
+    assert data["failed"] == []
+    assert [(f["log"], f["method"]) for f in data["method_failures"]] == [("raw", "scan_matching")]
+    assert data["raw"]["scan_matching"]["failed"].startswith(
+        "RuntimeError: Indeterminate linear system detected while working near variable x875 (test_slam_logs.py:")
+    assert data["raw"]["odometry"]["relations"] > 0
+    assert "failed: RuntimeError: Indeterminate" in capsys.readouterr().out
+    # A log that cannot be read is another matter: exit 1, listed under "failed".
+    broken = tmp_path / "broken.log"
+    broken.write_text("PARAM robot_use_laser on nohost 0\n")
+    assert main(["bench", "slam-logs", str(log), str(broken), "--methods", "odometry", "--json", str(js)]) == 1
+    assert [f["job"][0] for f in json.loads(js.read_text())["failed"]] == [str(broken)]
