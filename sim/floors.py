@@ -201,7 +201,7 @@ def _hall_quarter(plan: FloorPlan, rect: tuple[int, int, int, int], ms: str, xs:
     opening = (rows[0], rows[1], a, a + width)
     b.grid[b.m + rows[0] : b.m + rows[1], b.m + a : b.m + a + width] = FREE
     hall.doors.append(opening)
-    b.door(hall, xs)
+    _door(plan, hall, xs, narrow=False)
     outer_y, outer_x = ("S" if ms == "N" else "N"), ("W" if xs == "E" else "E")
     h, w = _cells(rng.uniform(3.0, 4.0)), _cells(rng.uniform(3.0, 4.0))
     rows = (hall.r1 + t - h, hall.r1 + t) if outer_y == "N" else (hall.r0 - t, hall.r0 - t + h)

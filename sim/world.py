@@ -2,8 +2,9 @@
 
 ``load_world(spec)`` takes a bundled world's name (``"lab"``), a world YAML,
 a bare map_server YAML, or a generated building ``KIND:SEED`` (``office:3``,
-``hospital:1``, ``slam_office:2``, ``floor:1``, ``atrium:1``: :mod:`homing.sim.buildings`). A world file (all lengths in metres, angles in
-radians, paths relative to the file)::
+``hospital:1``, ``slam_office:2``, ``floor:1``, ``atrium:1``: :mod:`homing.sim.buildings`).
+A world file (all lengths in metres, angles in radians, paths relative to the
+file)::
 
     name: lab                      # optional, default: the file's stem
     doc: The thesis's lab …        # optional: one line for 'homing missions'

@@ -169,17 +169,19 @@ def _longest_lane(free: np.ndarray, width: float) -> float:
     return best * RES
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3])
-def test_floor_is_about_2000_m2_with_a_corridor_over_40_m_diagonal_walls_and_narrow_passages(seed: int) -> None:
-    plan = floor_plan(seed)
+@pytest.mark.parametrize("kind, seed, area, lane", [("floor", s, (1800.0, 2250.0), 40.0) for s in (1, 2, 3)]
+                         + [("atrium", s, (700.0, 1300.0), 20.0) for s in (1, 2)])
+def test_floor_is_about_2000_m2_with_a_corridor_over_40_m_diagonal_walls_and_narrow_passages(
+        kind: str, seed: int, area: tuple[float, float], lane: float) -> None:
+    plan = (floor_plan if kind == "floor" else atrium_plan)(seed)
     grid = plan.map().grid
-    # Outer size: the building's bounding box (everything not unknown), 1800-2250 m²; most of it floor.
+    # Outer size: the building's bounding box (everything not unknown), 1800-2250 m² for a floor; most of it floor.
     rows, cols = np.nonzero(grid != UNKNOWN)
     outer = (rows.max() - rows.min() + 1) * (cols.max() - cols.min() + 1) * RES**2
-    assert 1800.0 <= outer <= 2250.0
+    assert area[0] <= outer <= area[1]
     assert (grid == FREE).sum() * RES**2 > 0.8 * outer
-    # A corridor: a straight free lane 1.4 m wide and at least 40 m long.
-    assert _longest_lane((grid == FREE).astype(np.uint8), 1.4) >= 40.0
+    # A corridor: a straight free lane 1.4 m wide and at least 40 m long (an atrium's hall: 20 m).
+    assert _longest_lane((grid == FREE).astype(np.uint8), 1.4) >= lane
     # Diagonal walls: segments 2.5 m or longer, 20-70 degrees off the axes, solid along their centre line.
     diagonal = 0
     for (x0, y0), (x1, y1) in plan.diagonal_ends():
@@ -192,15 +194,18 @@ def test_floor_is_about_2000_m2_with_a_corridor_over_40_m_diagonal_walls_and_nar
         assert (grid[r, c] == OCCUPIED).all()
         diagonal += 1
     assert diagonal >= 2
+    if kind == "atrium":  # one open hall: a disc 6 m across fits in it, pillars and partitions about (a room: 3-5 m)
+        clear = ndimage.distance_transform_edt(grid == FREE) * RES
+        assert clear.max() >= 3.0
     # Narrow passages: twice the clearance (exact distance transform on a grid of half cells, where a gap of n
     # cells has its middle n half-cells from the solid cells' centres either side) is 0.45-0.6 m.
-    assert len(plan.narrow) >= 3
+    assert len(plan.narrow) >= (3 if kind == "floor" else 2)
     fine = np.repeat(np.repeat(grid == FREE, 2, axis=0), 2, axis=1)
     clearance = ndimage.distance_transform_edt(fine) * RES / 2
     m = plan.builder.m
     for r0, r1, c0, c1 in plan.narrow:
         width = 2 * clearance[2 * (m + r0) : 2 * (m + r1), 2 * (m + c0) : 2 * (m + c1)].max()
-        assert PASSAGE_MIN <= width <= 0.6 + 1e-9, f"floor:{seed}: passage {(r0, r1, c0, c1)} is {width:.2f} m"
+        assert PASSAGE_MIN <= width <= 0.6 + 1e-9, f"{kind}:{seed}: passage {(r0, r1, c0, c1)} is {width:.2f} m"
 
 
 @pytest.mark.parametrize("kind, seed", [("floor", 1), ("floor", 2), ("floor", 3), ("atrium", 1), ("atrium", 2)])
