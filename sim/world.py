@@ -2,8 +2,9 @@
 
 ``load_world(spec)`` takes a bundled world's name (``"lab"``), a world YAML,
 a bare map_server YAML, or a generated building ``KIND:SEED`` (``office:3``,
-``hospital:1``, ``slam_office:2``: :mod:`homing.sim.buildings`). A world file (all lengths in metres, angles in
-radians, paths relative to the file)::
+``hospital:1``, ``slam_office:2``, ``floor:1``, ``atrium:1``: :mod:`homing.sim.buildings`).
+A world file (all lengths in metres, angles in radians, paths relative to the
+file)::
 
     name: lab                      # optional, default: the file's stem
     doc: The thesis's lab …        # optional: one line for 'homing missions'
@@ -137,6 +138,10 @@ def resolve(spec: str | Path) -> Path:
     if "/" not in text and not text.endswith((".yaml", ".yml")) and bundled.is_file():
         return bundled
     path = Path(text)
+    kind, colon, seed = text.partition(":")
+    if colon and kind in KINDS and not path.exists():
+        raise UserError(f"'{text}': a generated {kind}'s seed is a whole number of up to 9 digits "
+                        f"({kind}:SEED, e.g. {kind}:1), not '{seed}'")
     if not path.exists():
         names = sorted(p.stem for p in WORLDS_DIR.glob("*.yaml") if not p.stem.endswith("_map"))
         raise UserError(f"no world named '{text}' (bundled: {', '.join(names)}; generated: "
