@@ -125,7 +125,7 @@ class Subscription:
         att = sample.attachment
         got = parse_sample(str(sample.key_expr), sample.payload.to_bytes(),
                            att.to_bytes() if att is not None else None, self.typename,
-                           self.counters, time.time())  # fmt: skip
+                           self.counters, time.monotonic())  # fmt: skip
         if got is not None:
             self._callback(got)
 

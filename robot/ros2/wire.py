@@ -270,7 +270,7 @@ class Counters:
 
 @dataclass(frozen=True)
 class Received:
-    """A decoded sample: the message, its attachment, and the wall time it arrived [s, time.time()]."""
+    """A decoded sample: the message, its attachment, and when it arrived [s, time.monotonic()]."""
 
     message: Any
     attachment: Attachment
