@@ -1,0 +1,86 @@
+"""End to end over Zenoh: ``homing emulate --ros2`` serves the lab as a ROS 2 robot; ``homing run --robot`` explores it.
+
+The emulator is a Zenoh peer on 127.0.0.1 speaking rmw_zenoh's format
+(LaserScan, Odometry, BatteryState, /tf, latched /tf_static; cmd_vel in);
+the mission reaches it through Ros2Robot, a Zenoh client, on the wall clock.
+The simulator's adapter running the same mission is the yardstick.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("zenoh", reason="eclipse-zenoh (pip install 'homing[ros2]') is not installed")
+pytest.importorskip("xxhash", reason="xxhash (pip install 'homing[ros2]') is not installed")
+
+from homing.mapping.evaluate import cell_agreement  # noqa: E402
+from homing.mapping.grid import UNKNOWN  # noqa: E402
+from homing.mapping.map_io import load_grid  # noqa: E402
+from homing.sim import load_world  # noqa: E402
+
+SECONDS = "25s"
+MILESTONES = ("Undock: RUNNING -> SUCCESS", "SeedMap: RUNNING -> SUCCESS", "Explore: INVALID -> RUNNING")
+
+
+def _homing(*args: str) -> list[str]:
+    return [sys.executable, "-m", "homing.missions.cli", *args]
+
+
+def _map_figures(path: Path) -> tuple[float, float]:
+    """(cell agreement with the lab's floor plan, observed area [m²]) of a saved map."""
+    world = load_world("lab")
+    grid = load_grid(path, grow=False)
+    return cell_agreement(grid, world.map, world.start), float((grid.data != UNKNOWN).sum()) * grid.resolution**2
+
+
+@pytest.mark.slow
+def test_explore_over_the_emulated_ros2_robot(tmp_path: Path) -> None:
+    emu_dir = tmp_path / "emu"
+    emulator = subprocess.Popen(_homing("emulate", "--world", "lab", "--seed", "1", "--ros2", "--dir", str(emu_dir)),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        assert emulator.stdout is not None
+        endpoint = emulator.stdout.readline().strip()
+        robot_line = emulator.stdout.readline().strip()
+        assert re.fullmatch(r"tcp/127\.0\.0\.1:\d+", endpoint), endpoint
+        assert robot_line == f"robot file: {emu_dir / 'robot.yaml'}"
+        assert f"router: {endpoint}" in (emu_dir / "robot.yaml").read_text()
+        t0 = time.monotonic()
+        run = subprocess.run(_homing("run", "explore", "--robot", str(emu_dir / "robot.yaml"), "--until", SECONDS,
+                                     "--no-view", "--save-map", str(tmp_path / "ros2")),
+                             capture_output=True, text=True, timeout=180)  # fmt: skip
+        wall = time.monotonic() - t0
+    finally:
+        emulator.send_signal(signal.SIGINT)
+        out, err = emulator.communicate(timeout=30)
+    assert emulator.returncode == 0, err[-2000:]
+    assert "robot at (" in out
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    for milestone in MILESTONES:
+        assert milestone in run.stdout, milestone
+    assert "(1.0× real time)" in run.stdout and wall < 60.0
+    status = json.loads((emu_dir / "status.json").read_text())
+    assert status["distance"] > 1.0 and status["commands"] > 100  # the commands drove the simulated base
+    sim = subprocess.run(_homing("run", "explore", "--world", "lab", "--seed", "1", "--until", SECONDS, "--no-view",
+                                 "--save-map", str(tmp_path / "sim")),
+                         capture_output=True, text=True, timeout=180)  # fmt: skip
+    assert sim.returncode == 0, sim.stderr[-2000:]
+    agree, area = _map_figures(tmp_path / "ros2.yaml")
+    sim_agree, sim_area = _map_figures(tmp_path / "sim.yaml")
+    assert agree > 0.9 and agree > sim_agree - 0.05
+    assert area > 0.5 * sim_area
+
+
+def test_emulate_ros2_rejects_serial_only_options() -> None:
+    done = subprocess.run(_homing("emulate", "--world", "lab", "--ros2", "--noise", "0.1"),
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 2
+    assert done.stderr.strip() == "--noise is for the emulated serial devices; it does not apply with --ros2"
