@@ -312,3 +312,50 @@ def test_the_cli_reports_a_bad_ros2_robot_file_in_one_line_and_exits_2(tmp_path)
                           capture_output=True, text=True, timeout=120)  # fmt: skip
     assert done.returncode == 2
     assert done.stderr.strip() == f"{path}:3:1: unknown key 'domian' in robot file (did you mean 'domain'?)"
+
+
+class _Grid:
+    """A grid as homing.mapping's OccupancyGrid offers it: data (H, W) int8, resolution [m], origin (x, y) [m]."""
+
+    def __init__(self) -> None:
+        self.data = np.full((4, 6), -1, dtype=np.int8)
+        self.data[1:3, 1:5] = 0
+        self.data[0, 0] = 100
+        self.resolution = 0.05
+        self.origin = (-1.5, 2.0)
+
+
+def test_the_world_model_is_published_in_the_robots_graph(robot, peer):
+    from homing.robot.types import Pose2
+
+    got: dict[str, list[Received]] = {"status": [], "tf": [], "map": []}
+    cond = threading.Condition()
+
+    def keep(what: str) -> Callable[[Received], None]:
+        def on(r: Received) -> None:
+            with cond:
+                got[what].append(r)
+                cond.notify_all()
+        return on
+
+    n = peer.node
+    n.subscribe("/tree/status", "diagnostic_msgs/msg/DiagnosticArray", Qos(), keep("status"))
+    n.subscribe("/tf", "tf2_msgs/msg/TFMessage", Qos(), keep("tf"))
+    path = np.array([[0.0, 0.0], [0.5, 0.25], [1.0, 0.5]])
+    with cond:  # the status and tf subscriptions are declared; publish until they hear it (discovery is async)
+        for _ in range(200):
+            robot.publish_world(grid=_Grid(), map_to_odom=Pose2(1.0, -2.0, 0.3), path=path, goal=Pose2(1.0, 0.5),
+                                state="Exploring", statuses={"Explore": "RUNNING", "Undock": "SUCCESS"})  # fmt: skip
+            if cond.wait_for(lambda: got["status"] and got["tf"], 0.05):
+                break
+    status = got["status"][-1].message.status
+    assert [(s.name, s.level, s.message) for s in status] == [("Explore", 1, "RUNNING"), ("Undock", 0, "SUCCESS")]
+    tf = got["tf"][-1].message.transforms[0]
+    assert (tf.header.frame_id, tf.child_frame_id, tf.transform.translation.x) == ("map", "odom", 1.0)
+    # the map is latched: a subscription made after it was sent still gets it, from homing's cache
+    n.subscribe("/map", "nav_msgs/msg/OccupancyGrid", LATCHED, keep("map"))
+    with cond:
+        assert cond.wait_for(lambda: got["map"], WAIT)
+    grid = got["map"][0].message
+    assert (grid.info.width, grid.info.height, grid.info.resolution) == (6, 4, pytest.approx(0.05))
+    assert grid.info.origin.position.x == -1.5 and grid.data.tolist() == _Grid().data.reshape(-1).tolist()

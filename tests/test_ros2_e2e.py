@@ -24,6 +24,8 @@ pytest.importorskip("xxhash", reason="xxhash (pip install 'homing[ros2]') is not
 from homing.mapping.evaluate import cell_agreement  # noqa: E402
 from homing.mapping.grid import UNKNOWN  # noqa: E402
 from homing.mapping.map_io import load_grid  # noqa: E402
+from homing.robot.ros2.node import Ros2Node  # noqa: E402
+from homing.robot.ros2.wire import LATCHED, Qos, Received  # noqa: E402
 from homing.sim import load_world  # noqa: E402
 
 SECONDS = "25s"
@@ -53,11 +55,20 @@ def test_explore_over_the_emulated_ros2_robot(tmp_path: Path) -> None:
         assert re.fullmatch(r"tcp/127\.0\.0\.1:\d+", endpoint), endpoint
         assert robot_line == f"robot file: {emu_dir / 'robot.yaml'}"
         assert f"router: {endpoint}" in (emu_dir / "robot.yaml").read_text()
+        probe = Ros2Node("probe", mode="client", connect=[endpoint])  # RViz on the robot's network, say
+        heard: dict[str, list[Received]] = {"map": [], "status": [], "state": []}
+        for name, topic, typename, qos in (
+            ("map", "/map", "nav_msgs/msg/OccupancyGrid", LATCHED),
+            ("status", "/tree/status", "diagnostic_msgs/msg/DiagnosticArray", Qos()),
+            ("state", "/mission/state", "std_msgs/msg/String", LATCHED),
+        ):
+            probe.subscribe(topic, typename, qos, heard[name].append)
         t0 = time.monotonic()
         run = subprocess.run(_homing("run", "explore", "--robot", str(emu_dir / "robot.yaml"), "--until", SECONDS,
                                      "--no-view", "--save-map", str(tmp_path / "ros2")),
                              capture_output=True, text=True, timeout=180)  # fmt: skip
         wall = time.monotonic() - t0
+        probe.close()
     finally:
         emulator.send_signal(signal.SIGINT)
         out, err = emulator.communicate(timeout=30)
@@ -67,6 +78,11 @@ def test_explore_over_the_emulated_ros2_robot(tmp_path: Path) -> None:
     for milestone in MILESTONES:
         assert milestone in run.stdout, milestone
     assert "(1.0× real time)" in run.stdout and wall < 60.0
+    # homing's world model reached the robot's graph while it ran
+    assert heard["map"] and heard["map"][-1].message.info.resolution == pytest.approx(0.05)
+    assert (heard["map"][-1].message.data >= 0).sum() > 1000  # known cells
+    assert {"Undocking", "Exploring"} <= {r.message.data for r in heard["state"]}
+    assert any(s.name == "Explore" and s.level == 1 for r in heard["status"] for s in r.message.status)
     status = json.loads((emu_dir / "status.json").read_text())
     assert status["distance"] > 1.0 and status["commands"] > 100  # the commands drove the simulated base
     sim = subprocess.run(_homing("run", "explore", "--world", "lab", "--seed", "1", "--until", SECONDS, "--no-view",

@@ -137,6 +137,7 @@ class Ros2Robot:
         self.failure: LinkLost | None = None
         self._link_ok, self._link_checked = True, -math.inf
         self._cmd = Twist2()
+        self._world: Any = None
         try:
             self.node = Ros2Node(c.node, domain=c.domain, namespace=c.namespace, mode="client", connect=[c.router])
         except Exception as err:  # zenoh.ZError: unreachable endpoint, refused…
@@ -243,6 +244,14 @@ class Ros2Robot:
         deadline = max(deadline, now)
         time.sleep(deadline - now)
         self._deadline = deadline
+
+    def publish_world(self, **world: Any) -> None:
+        """Publish homing's world model on the robot's graph (:class:`~homing.robot.ros2.world.WorldPublisher`)."""
+        if self._world is None:
+            from homing.robot.ros2.world import WorldPublisher
+
+            self._world = WorldPublisher(self.node)
+        self._world.publish(**world)
 
     def close(self) -> None:
         """Send zero, undeclare homing's node and endpoints, close the session (again: nothing)."""
