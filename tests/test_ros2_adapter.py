@@ -63,8 +63,12 @@ def _tf(parent: str, child: str, x: float, y: float, yaw: float) -> object:
 class RobotPeer:
     """A ROS 2 robot on a listening Zenoh peer: scan 10 Hz, odom 50 Hz, battery 1 Hz, static TF, cmd_vel in."""
 
-    def __init__(self, port: int, cmd_type: str = "geometry_msgs/msg/Twist"):
-        self.node = Ros2Node("turtlebot", mode="peer", listen=[f"tcp/127.0.0.1:{port}"])
+    def __init__(self, port: int, cmd_type: str = "geometry_msgs/msg/Twist", *, via_router: bool = False):
+        if via_router:  # rmw_zenoh's default session: a peer connected to the router, listening on loopback
+            self.node = Ros2Node("turtlebot", mode="peer", connect=[f"tcp/127.0.0.1:{port}"],
+                                 listen=["tcp/127.0.0.1:0"])  # fmt: skip
+        else:  # the robot's session is itself the endpoint homing connects to
+            self.node = Ros2Node("turtlebot", mode="peer", listen=[f"tcp/127.0.0.1:{port}"])
         n = self.node
         self.scan_pub = n.publisher("/scan", "sensor_msgs/msg/LaserScan", SENSOR_DATA)
         self.odom_pub = n.publisher("/odom", "nav_msgs/msg/Odometry", Qos())
@@ -268,6 +272,32 @@ def test_a_lost_router_stops_the_robot_and_it_reconnects_when_the_router_is_back
     finally:
         robot.close()
         peer.close()
+
+
+def test_through_a_zenoh_router_as_rmw_zenohd_runs_it_and_when_it_restarts(tmp_path, port):
+    import zenoh
+    from homing.robot.ros2.node import session_config
+
+    router = zenoh.open(session_config("router", listen=[f"tcp/127.0.0.1:{port}"]))
+    peer = RobotPeer(port, via_router=True)
+    robot = None
+    try:
+        robot = open_ros2_robot(robot_file(tmp_path, port))
+        assert list(robot.node.session.info.routers_zid())  # homing talks to the router, not to the robot directly
+        assert robot.observe().scan is not None
+        robot.command(0.25, 0.0)
+        assert peer.wait_commands(1)[-1].message.linear.x == 0.25
+        router.close()
+        assert wait_until(lambda: robot.observe().devices_lost == ("router",))
+        router = zenoh.open(session_config("router", listen=[f"tcp/127.0.0.1:{port}"]))
+        assert wait_until(lambda: robot.observe().devices_lost == (), timeout=30.0), robot.failure
+        robot.command(0.2, 0.0)
+        assert wait_until(lambda: any(c.message.linear.x == 0.2 for c in peer.wait_commands(1)))
+    finally:
+        if robot is not None:
+            robot.close()
+        peer.close()
+        router.close()
 
 
 def test_an_unreachable_router_is_a_one_line_error_at_the_robot_files_router(tmp_path):
