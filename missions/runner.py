@@ -39,6 +39,7 @@ from homing.behaviours.keys import (
     EXPLORE_GOAL_KEY,
     GRID_KEY,
     IDLE_KEY,
+    LANDMARKS_KEY,
     MAP_TO_ODOM_KEY,
     NAVIGATOR_KEY,
     SAVE_KEY,
@@ -132,7 +133,7 @@ class Runner:
         for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state", IDLE_KEY, SAVE_KEY, CYCLES_KEY,
                     DOCK_KEY):
             self.bb.register_key(key=key, access=Access.WRITE)
-        for key in (TAGS_KEY, NAVIGATOR_KEY, EXPLORE_GOAL_KEY, GRID_KEY, MAP_TO_ODOM_KEY):  # --record, ROS 2 robots
+        for key in (TAGS_KEY, NAVIGATOR_KEY, EXPLORE_GOAL_KEY, GRID_KEY, MAP_TO_ODOM_KEY, LANDMARKS_KEY):  # --record, ROS 2 robots
             if key not in self.bb.remappings:
                 self.bb.register_key(key=key, access=Access.READ)
         for key in self.mission.source.view_keys:
@@ -225,7 +226,8 @@ class Runner:
             nav = self.read(NAVIGATOR_KEY)
             publish_world(grid=self.read(GRID_KEY), map_to_odom=self.read(MAP_TO_ODOM_KEY),
                           path=getattr(nav, "path", None), goal=self.read(EXPLORE_GOAL_KEY),
-                          state=self.read(STATE_KEY), statuses={n.name: n.status.value for n in self._nodes})  # fmt: skip
+                          state=self.read(STATE_KEY), statuses={n.name: n.status.value for n in self._nodes},
+                          landmarks=self.read(LANDMARKS_KEY))  # fmt: skip
         if rec is not None:
             rec.record_command(obs.stamp, self.last_command)
             rec.record_image(obs.image)

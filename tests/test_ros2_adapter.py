@@ -141,7 +141,7 @@ class RobotPeer:
 
 def robot_file(tmp_path: Path, port: int, extra: str = "") -> Path:
     path = tmp_path / "robot.yaml"
-    path.write_text(f"kind: ros2\nrouter: tcp/127.0.0.1:{port}\ntimeouts: {{scan: 0.5, odom: 0.3}}\n"
+    path.write_text(f"kind: ros2\nrouter: tcp/127.0.0.1:{port}\ntimeouts: {{scan: 1.0, odom: 0.6}}\n"
                     f"radius: 0.2\nmax_v: 0.5\n{extra}")  # fmt: skip
     return path
 
@@ -375,7 +375,8 @@ def test_the_world_model_is_published_in_the_robots_graph(robot, peer):
     with cond:  # the status and tf subscriptions are declared; publish until they hear it (discovery is async)
         for _ in range(200):
             robot.publish_world(grid=_Grid(), map_to_odom=Pose2(1.0, -2.0, 0.3), path=path, goal=Pose2(1.0, 0.5),
-                                state="Exploring", statuses={"Explore": "RUNNING", "Undock": "SUCCESS"})  # fmt: skip
+                                state="Exploring", statuses={"Explore": "RUNNING", "Undock": "SUCCESS"},
+                                landmarks={7: Pose2(3.0, 1.0, math.pi), 0: Pose2(0.2, -0.1, 0.0)})  # fmt: skip
             if cond.wait_for(lambda: got["status"] and got["tf"], 0.05):
                 break
     status = got["status"][-1].message.status
@@ -386,6 +387,13 @@ def test_the_world_model_is_published_in_the_robots_graph(robot, peer):
     n.subscribe("/map", "nav_msgs/msg/OccupancyGrid", LATCHED, keep("map"))
     with cond:
         assert cond.wait_for(lambda: got["map"], WAIT)
+    got["tags"] = []
+    n.subscribe("/slam/landmarks", "visualization_msgs/msg/MarkerArray", LATCHED, keep("tags"))
+    with cond:
+        assert cond.wait_for(lambda: got["tags"], WAIT)
+    markers = got["tags"][0].message.markers
+    assert [(mk.id, mk.header.frame_id, mk.pose.position.x, mk.text) for mk in markers] == [
+        (0, "map", 0.2, "0"), (7, "map", 3.0, "7")]
     grid = got["map"][0].message
     assert (grid.info.width, grid.info.height, grid.info.resolution) == (6, 4, pytest.approx(0.05))
     assert grid.info.origin.position.x == -1.5 and grid.data.tolist() == _Grid().data.reshape(-1).tolist()

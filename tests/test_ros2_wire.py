@@ -224,3 +224,15 @@ def test_bad_samples_are_counted_and_skipped_never_raised():
 
 def test_latched_profile_is_transient_local():
     assert LATCHED.latched and LATCHED.durability is Durability.TRANSIENT_LOCAL
+
+
+@pytest.mark.parametrize("typename", ["visualization_msgs/msg/Marker", "nav_msgs/msg/Odometry",
+                                      "sensor_msgs/msg/CameraInfo"])  # fmt: skip
+def test_zero_messages_have_every_field_and_round_trip(typename):
+    msg = wire.zero(typename, **({"id": 7} if typename.endswith("Marker") else {}))
+    data = wire.encode(msg, typename)
+    assert wire.encode(wire.decode(data, typename), typename) == data
+    if typename.endswith("Odometry"):
+        assert msg.pose.covariance.shape == (36,) and msg.child_frame_id == ""
+    if typename.endswith("Marker"):
+        assert msg.id == 7 and msg.points == [] and msg.text == ""

@@ -33,6 +33,7 @@ from enum import IntEnum
 from functools import cache
 from typing import Any
 
+import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
 ADMIN_SPACE = "@ros2_lv"  # the hermetic prefix of every liveliness token
@@ -245,6 +246,31 @@ def decode(data: bytes, typename: str) -> Any:
 def message(typename: str, **fields: Any) -> Any:
     """A rosbags message object of ``typename`` built from keyword fields."""
     return typestore().types[typename](**fields)
+
+
+NUMPY = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "int8": np.int8, "uint8": np.uint8,
+         "int16": np.int16, "uint16": np.uint16, "int32": np.int32, "uint32": np.uint32, "int64": np.int64,
+         "uint64": np.uint64, "float32": np.float32, "float64": np.float64}  # fmt: skip
+
+
+def zero(typename: str, **fields: Any) -> Any:
+    """A message of ``typename`` with every field not given zero, empty or its nested type's zero."""
+    values = {}
+    for name, (kind, spec) in typestore().fielddefs[typename][1]:
+        if name in fields:
+            values[name] = fields[name]
+        elif kind == 1:  # a base type: (type, string bound)
+            values[name] = "" if spec[0] in ("string", "wstring") else (False if spec[0] == "bool" else 0)
+        elif kind == 2:  # a nested message
+            values[name] = zero(spec)
+        else:  # 3: a fixed array, 4: a sequence: ((kind, spec), length)
+            (inner_kind, inner), n = spec
+            n = n if kind == 3 else 0
+            if inner_kind == 1 and inner[0] in NUMPY:
+                values[name] = np.zeros(n, dtype=NUMPY[inner[0]])
+            else:
+                values[name] = [zero(inner) if inner_kind == 2 else "" for _ in range(n)]
+    return typestore().types[typename](**values)
 
 
 @dataclass

@@ -9,6 +9,7 @@
 | ``/plan`` | ``nav_msgs/msg/Path`` (frame ``map``) | when the navigator's path changes |
 | ``/explore/goal`` | ``geometry_msgs/msg/PoseStamped`` (frame ``map``) | when the frontier goal changes |
 | ``/mission/state`` | ``std_msgs/msg/String``, latched | when the lifecycle state changes |
+| ``/slam/landmarks`` | ``visualization_msgs/msg/MarkerArray`` (frame ``map``; a flat cube per tag, marker id = tag id), latched | when the tag landmarks change |
 | ``/tree/status`` | ``diagnostic_msgs/msg/DiagnosticArray`` | every tick: one DiagnosticStatus per node, level 0 SUCCESS, 1 RUNNING, 2 FAILURE, 3 INVALID (as the MCAP export writes it) |
 
 Inputs are plain values (a grid with ``data`` (H, W) int8 in ROS's
@@ -57,12 +58,13 @@ class WorldPublisher:
         self.goal_pub = node.publisher("/explore/goal", G + "PoseStamped", Qos())
         self.state_pub = node.publisher("/mission/state", "std_msgs/msg/String", LATCHED)
         self.status_pub = node.publisher("/tree/status", "diagnostic_msgs/msg/DiagnosticArray", Qos())
+        self.tags_pub = node.publisher("/slam/landmarks", "visualization_msgs/msg/MarkerArray", LATCHED)
         self._next_map = -math.inf
         self._last: dict[str, Any] = {}
 
     def publish(self, *, grid: Any = None, map_to_odom: Pose2 | None = None, path: np.ndarray | None = None,
-                goal: Pose2 | None = None, state: str | None = None,
-                statuses: dict[str, str] | None = None) -> None:  # fmt: skip
+                goal: Pose2 | None = None, state: str | None = None, statuses: dict[str, str] | None = None,
+                landmarks: dict[int, Pose2] | None = None) -> None:  # fmt: skip
         """Publish what is given (None: nothing of it), each at its own pace (see the module's table)."""
         ns = time.time_ns()
         if grid is not None:
@@ -81,6 +83,12 @@ class WorldPublisher:
             self.goal_pub.publish(wire.message(G + "PoseStamped", header=_header("map", ns), pose=_pose(goal)))
         if state is not None and self._changed("state", state):
             self.state_pub.publish(wire.message("std_msgs/msg/String", data=state))
+        if landmarks and self._changed("landmarks", sorted(landmarks.items())):
+            self.tags_pub.publish(wire.message("visualization_msgs/msg/MarkerArray", markers=[
+                wire.zero("visualization_msgs/msg/Marker", header=_header("map", ns), ns="tags", id=int(i), type=1,
+                          pose=_pose(p), scale=wire.message(G + "Vector3", x=0.02, y=0.2, z=0.2), text=str(i),
+                          color=wire.message("std_msgs/msg/ColorRGBA", r=0.1, g=0.6, b=1.0, a=1.0))
+                for i, p in sorted(landmarks.items())]))  # fmt: skip
         if statuses is not None:
             items = [wire.message("diagnostic_msgs/msg/DiagnosticStatus", level=STATUS_LEVEL.get(s, 3), name=name,
                                   message=s, hardware_id="homing", values=[])
