@@ -17,7 +17,11 @@ advanced publisher's cache, as rmw_zenoh's TRANSIENT_LOCAL publishers keep
 one). Every sample carries rmw_zenoh's attachment and every endpoint its
 liveliness token. The folder gets ``robot.yaml`` (``kind: ros2``, naming the
 endpoint) and ``status.json`` (the simulator's truth, for tests only).
-Docking over ROS 2 is not emulated: the robot has no Kobuki dock IR topic.
+Like a Kobuki under ``kobuki_ros``, it also publishes the dock's IR on
+``/sensors/dock_ir`` every tick and bumper events on ``/events/bumper``
+(``kobuki_ros_interfaces``), and, like an RGB camera driver, each frame the
+simulator renders (while a tag can be in view) on ``/camera/color/image_raw``
+(``rgb8``) with its ``camera_info``; charging shows in the BatteryState.
 """
 
 from __future__ import annotations
@@ -51,9 +55,12 @@ kind: ros2
 router: {endpoint}
 domain: {domain}
 node: homing
-topics: {{scan: /scan, odom: /odom, battery: /battery_state, cmd_vel: /cmd_vel}}
+topics: {{scan: /scan, odom: /odom, battery: /battery_state, cmd_vel: /cmd_vel, dock_ir: /sensors/dock_ir,
+          bumper: /events/bumper{camera}}}
 frames: {{base: base_link}}
 """
+CAMERA_TOPICS = ", image: /camera/color/image_raw, camera_info: /camera/color/camera_info"
+CAMERA_POSE = "camera_pose: [{x:g}, {y:g}, {z:g}, 0.0]\n"
 
 
 def _stamp(t_ns: int) -> Any:
@@ -81,12 +88,17 @@ def _transform(parent: str, child: str, x: float, y: float, z: float, yaw: float
 class Ros2Emulation:
     """The simulated robot behind a Zenoh peer on 127.0.0.1 (``port`` 0: a free one)."""
 
-    def __init__(self, world: World, folder: str | Path, seed: int = 0, port: int = 0, domain: int = 0):
+    def __init__(self, world: World, folder: str | Path, seed: int = 0, port: int = 0, domain: int = 0,
+                 camera: bool = True):  # fmt: skip
         from homing.sim.robot import SimRobot
 
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
-        self.robot = SimRobot(world, seed=seed, camera=False)
+        self.robot = SimRobot(world, seed=seed, camera=camera)
+        self.camera = camera
+        self._frame_stamp: float | None = None
+        self._bumpers: tuple[bool, bool, bool] = (False, False, False)
+        self.frames = 0
         self.port = port or free_port()
         self.domain = domain
         self.node: Ros2Node | None = None
@@ -120,8 +132,17 @@ class Ros2Emulation:
         x, y, yaw = (pose.x, pose.y, pose.theta) if pose is not None else (0.0, 0.0, 0.0)
         static.publish(wire.message("tf2_msgs/msg/TFMessage", transforms=[
             _transform("base_link", LASER_FRAME, x, y, 0.5, yaw, time.time_ns())]))  # fmt: skip
+        self.ir_pub = n.publisher("/sensors/dock_ir", "kobuki_ros_interfaces/msg/DockInfraRed", SENSOR_DATA)
+        self.bumper_pub = n.publisher("/events/bumper", "kobuki_ros_interfaces/msg/BumperEvent", Qos())
+        text = ROBOT_FILE.format(endpoint=self.endpoint, domain=self.domain, camera=CAMERA_TOPICS if self.camera else "")
+        if self.camera:
+            self.image_pub = n.publisher("/camera/color/image_raw", "sensor_msgs/msg/Image", SENSOR_DATA)
+            self.info_pub = n.publisher("/camera/color/camera_info", "sensor_msgs/msg/CameraInfo", SENSOR_DATA)
+            assert self.robot.camera is not None
+            x, y, z = (float(v) for v in self.robot.camera.info.base_from_optical[:3, 3])
+            text += CAMERA_POSE.format(x=x, y=y, z=z)
         n.subscribe("/cmd_vel", "geometry_msgs/msg/Twist", Qos(), self._on_cmd)
-        atomic_write(self.robot_file, ROBOT_FILE.format(endpoint=self.endpoint, domain=self.domain))
+        atomic_write(self.robot_file, text)
         self._write_status()
         self._thread = threading.Thread(target=self._run, name="homing-ros2-emulation", daemon=True)
         self._thread.start()
@@ -164,6 +185,17 @@ class Ros2Emulation:
         if obs.scan is not None and obs.scan.stamp != self._last_scan:
             self._last_scan = obs.scan.stamp
             self._publish_scan(obs, t_ns)
+        ir = obs.dock_ir
+        self.ir_pub.publish(wire.message("kobuki_ros_interfaces/msg/DockInfraRed", header=_header("dock_ir", t_ns),
+                                         data=np.array([ir.right, ir.centre, ir.left], dtype=np.uint8)))  # fmt: skip
+        b = obs.bumpers
+        for i, (was, now) in enumerate(zip(self._bumpers, (b.left, b.centre, b.right), strict=True)):
+            if was != now:
+                self.bumper_pub.publish(wire.message("kobuki_ros_interfaces/msg/BumperEvent", bumper=i, state=int(now)))
+        self._bumpers = (b.left, b.centre, b.right)
+        if obs.image is not None and obs.image.stamp != self._frame_stamp:
+            self._frame_stamp = obs.image.stamp
+            self._publish_image(obs, t_ns)
         if wall >= self._next_status:
             self._next_status = wall + STATUS_PERIOD
             self._publish_battery(obs, t_ns)
@@ -191,6 +223,24 @@ class Ros2Emulation:
             time_increment=0.0, scan_time=0.0, range_min=float(s.range_min), range_max=float(s.range_max),
             ranges=ranges, intensities=np.zeros(0, np.float32)))  # fmt: skip
 
+    def _publish_image(self, obs: Observation, t_ns: int) -> None:
+        img = obs.image
+        assert img is not None
+        pixels = np.ascontiguousarray(img.image, dtype=np.uint8)
+        h, w = pixels.shape[:2]
+        mono = pixels.ndim == 2
+        i = img.info
+        header = _header("camera_color_optical_frame", t_ns)
+        self.info_pub.publish(wire.zero("sensor_msgs/msg/CameraInfo", header=header, width=w, height=h,
+                                        distortion_model="plumb_bob", d=np.zeros(5),
+                                        k=np.array([i.fx, 0.0, i.cx, 0.0, i.fy, i.cy, 0.0, 0.0, 1.0]),
+                                        r=np.eye(3).reshape(-1),
+                                        p=np.array([i.fx, 0.0, i.cx, 0.0, 0.0, i.fy, i.cy, 0.0, 0.0, 0.0, 1.0, 0.0])))  # fmt: skip
+        self.image_pub.publish(wire.message("sensor_msgs/msg/Image", header=header, height=h, width=w,
+                                            encoding="mono8" if mono else "rgb8", is_bigendian=0,
+                                            step=w if mono else 3 * w, data=pixels.reshape(-1)))  # fmt: skip
+        self.frames += 1
+
     def _publish_battery(self, obs: Observation, t_ns: int) -> None:
         b = obs.battery
         status = {ChargingState.DOCKING_CHARGING: 1, ChargingState.ADAPTER_CHARGING: 1,
@@ -207,7 +257,8 @@ class Ros2Emulation:
         """The simulator's truth and the link's counters (evaluation only)."""
         pose = self.robot.truth_pose()
         return {"time": self.robot.clock.now(), "truth": [pose.x, pose.y, pose.theta], "distance": self.distance,
-                "commands": self.commands, "endpoint": self.endpoint}  # fmt: skip
+                "commands": self.commands, "frames": self.frames, "charging": self.robot.charging,
+                "from_dock": pose.distance_to(self.robot.world.dock_pose), "endpoint": self.endpoint}  # fmt: skip
 
     def _write_status(self) -> None:
         atomic_write(self.folder / "status.json", json.dumps(self.status(), indent=1) + "\n")

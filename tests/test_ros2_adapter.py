@@ -313,7 +313,7 @@ def test_a_router_without_the_robots_topics_is_a_one_line_error(tmp_path, port):
     try:
         path = tmp_path / "robot.yaml"
         path.write_text(f"kind: ros2\nrouter: tcp/127.0.0.1:{port}\ntimeouts: {{first_data: 0.5}}\n")
-        with pytest.raises(UserError, match=r"robot.yaml:2:9: no /odom and no /scan from tcp/127.0.0.1:\d+ within 0.5 s"):
+        with pytest.raises(UserError, match=r"robot.yaml:2:9: no /odom and no /scan and no /battery_state from tcp/127.0.0.1:\d+ within 0.5 s"):
             open_ros2_robot(path)
     finally:
         quiet.close()
@@ -397,3 +397,51 @@ def test_the_world_model_is_published_in_the_robots_graph(robot, peer):
     grid = got["map"][0].message
     assert (grid.info.width, grid.info.height, grid.info.resolution) == (6, 4, pytest.approx(0.05))
     assert grid.info.origin.position.x == -1.5 and grid.data.tolist() == _Grid().data.reshape(-1).tolist()
+
+
+def test_a_kobuki_under_kobuki_ros_gives_dock_ir_bumpers_and_camera_frames(tmp_path, port, peer):
+    from homing.robot.types import IR
+
+    n = peer.node
+    ir_pub = n.publisher("/sensors/dock_ir", "kobuki_ros_interfaces/msg/DockInfraRed", SENSOR_DATA)
+    bumper_pub = n.publisher("/events/bumper", "kobuki_ros_interfaces/msg/BumperEvent", Qos())
+    image_pub = n.publisher("/camera/image_raw", "sensor_msgs/msg/Image", SENSOR_DATA)
+    info_pub = n.publisher("/camera/camera_info", "sensor_msgs/msg/CameraInfo", SENSOR_DATA)
+    robot = open_ros2_robot(robot_file(tmp_path, port, "topics: {dock_ir: /sensors/dock_ir, bumper: /events/bumper, "
+                                       "image: /camera/image_raw, camera_info: /camera/camera_info}\n"
+                                       "camera_pose: [0.12, 0.0, 0.35, 0.0]\n"))  # fmt: skip
+    try:
+        pixels = np.arange(4 * 5 * 3, dtype=np.uint8).reshape(4, 5, 3)
+        bgr = np.zeros((4, 8, 3), dtype=np.uint8)  # a row padded to 24 bytes, as drivers may send
+        bgr[:, :5] = pixels[..., ::-1]
+        info = wire.zero("sensor_msgs/msg/CameraInfo", width=5, height=4,
+                         k=np.array([200.0, 0.0, 2.5, 0.0, 210.0, 1.5, 0.0, 0.0, 1.0]))  # fmt: skip
+        image = m("sensor_msgs/msg/Image", header=_header("camera"), height=4, width=5, encoding="bgr8",
+                  is_bigendian=0, step=24, data=bgr.reshape(-1))  # fmt: skip
+
+        def send() -> None:
+            ir_pub.publish(m("kobuki_ros_interfaces/msg/DockInfraRed", header=_header("dock_ir"),
+                             data=np.array([IR.NEAR_LEFT, IR.FAR_CENTER | IR.NEAR_CENTER, 0], dtype=np.uint8)))  # fmt: skip
+            info_pub.publish(info)
+            image_pub.publish(image)
+            bumper_pub.publish(m("kobuki_ros_interfaces/msg/BumperEvent", bumper=1, state=1))
+
+        def seen() -> bool:  # the robot's subscriptions are discovered asynchronously: send until they hear
+            send()
+            obs = robot.observe()
+            return obs.image is not None and obs.bumpers.centre
+
+        assert wait_until(seen)
+        obs = robot.observe()
+        assert obs.dock_ir.right == IR.NEAR_LEFT and obs.dock_ir.centre == IR.FAR_CENTER | IR.NEAR_CENTER
+        assert obs.dock_ir.left == IR.NONE and obs.bumpers.any() and not obs.bumpers.left
+        assert obs.image is not None and np.array_equal(obs.image.image, pixels)  # bgr8 with padding read as RGB
+        cam = obs.image.info
+        assert (cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy) == (5, 4, 200.0, 210.0, 2.5, 1.5)
+        assert cam.base_from_optical[:3, 3] == pytest.approx([0.12, 0.0, 0.35])
+        assert cam.base_from_optical[:3, 2] == pytest.approx([1.0, 0.0, 0.0])  # the optical z looks forward
+        bumper_pub.publish(m("kobuki_ros_interfaces/msg/BumperEvent", bumper=1, state=0))
+        assert wait_until(lambda: not robot.observe().bumpers.any())
+        assert wait_until(lambda: not robot.observe().dock_ir.any())  # a dock IR reading goes stale
+    finally:
+        robot.close()

@@ -95,6 +95,50 @@ def test_explore_over_the_emulated_ros2_robot(tmp_path: Path) -> None:
     assert area > 0.5 * sim_area
 
 
+CYCLE = ("Undock", "Explore", "GoHome", "ServoToStaging", "AutoDock")  # one cycle's leaves, in order
+CHANGE = re.compile(r"^\[\s*([0-9.]+) s\] (\w+): (\w+) -> (\w+)$")
+
+
+def _first_changes(stdout: str) -> list[tuple[str, str]]:
+    """The cycle's leaves as (name, first final status), in the order they first finished."""
+    done: dict[str, str] = {}
+    for line in stdout.splitlines():
+        m = CHANGE.match(line.strip())
+        if m and m[2] in CYCLE and m[3] == "RUNNING" and m[2] not in done:
+            done[m[2]] = m[4]
+    return list(done.items())
+
+
+@pytest.mark.slow
+def test_a_persistent_cycle_over_the_emulated_ros2_robot(tmp_path: Path) -> None:
+    """Undock, explore, go home, servo on the dock's tag (camera frames as sensor_msgs/Image) and IR-dock
+    (kobuki_ros' DockInfraRed), docked by the BatteryState's word: over Zenoh only."""
+    emu_dir = tmp_path / "emu"
+    emulator = subprocess.Popen(_homing("emulate", "--world", "lab", "--seed", "1", "--ros2", "--dir", str(emu_dir)),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        assert emulator.stdout is not None
+        emulator.stdout.readline()
+        emulator.stdout.readline()
+        run = subprocess.run(_homing("run", "persistent", "--robot", str(emu_dir / "robot.yaml"), "--set",
+                                     "session=10s", "--set", "cycles=1", "--no-view", "--until", "150s"),
+                             capture_output=True, text=True, timeout=240)  # fmt: skip
+        status = json.loads((emu_dir / "status.json").read_text())
+        deadline = time.monotonic() + 5.0  # status.json is rewritten every second: wait for the charger's word
+        while not status["charging"] and time.monotonic() < deadline:
+            time.sleep(0.1)
+            status = json.loads((emu_dir / "status.json").read_text())
+    finally:
+        emulator.send_signal(signal.SIGINT)
+        emulator.communicate(timeout=30)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
+    assert "stopped: success" in run.stdout and "root SUCCESS" in run.stdout
+    # Explore is halted (INVALID) when the session ends; every other leaf of the cycle succeeds, in order
+    assert _first_changes(run.stdout) == [(leaf, "INVALID" if leaf == "Explore" else "SUCCESS") for leaf in CYCLE]
+    assert status["frames"] > 0 and status["distance"] > 1.0
+    assert status["charging"] and status["from_dock"] < 0.05  # on the contacts, charging
+
+
 def test_emulate_ros2_rejects_serial_only_options() -> None:
     done = subprocess.run(_homing("emulate", "--world", "lab", "--ros2", "--noise", "0.1"),
                           capture_output=True, text=True, timeout=120)  # fmt: skip

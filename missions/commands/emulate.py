@@ -122,7 +122,8 @@ def _run_ros2(args: argparse.Namespace, world: object, folder: str, until: float
     except ImportError as err:
         raise UserError(f"--ros2 needs the ros2 extra (pip install 'homing[ros2]'): {err}") from None
     try:
-        emulation = Ros2Emulation(world, folder, seed=args.seed, port=args.port)  # type: ignore[arg-type]
+        emulation = Ros2Emulation(world, folder, seed=args.seed, port=args.port,  # type: ignore[arg-type]
+                                  camera=not args.no_camera)
     except OSError as err:
         raise UserError(f"--dir: cannot use {folder}: {err.strerror}", folder) from None
     done = _stop_on_signals()

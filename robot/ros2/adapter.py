@@ -19,11 +19,19 @@ a client, declares homing's node and its endpoints, and returns a
   a mission's ``DevicesOk`` guard takes the tree to Error, and it clears by
   itself when the router and the data are back (Zenoh's client reconnects).
 
+- optional topics a Kobuki under ``kobuki_ros`` and a camera driver give:
+  the dock's IR (``kobuki_ros_interfaces/DockInfraRed``; a reading older
+  than ``DOCK_IR_TIMEOUT`` reads as nothing seen), the bumpers' events
+  (``kobuki_ros_interfaces/BumperEvent``), and camera frames
+  (``sensor_msgs/Image`` in rgb8, bgr8 or mono8, with ``CameraInfo``'s K and
+  the robot file's ``camera_pose``) for the tags; without them the bumpers
+  and the dock IR read nothing and there is no image;
+- charging comes from the BatteryState's ``power_supply_status`` (CHARGING,
+  FULL: on the dock, or on an adapter if the robot file says so).
+
 Opening fails with a one-line :class:`~homing.errors.UserError` at the
-robot file's ``router`` entry if the router cannot be reached or no odometry
-and scan arrive within ``timeouts.first_data``. The robot's bumpers, dock IR
-and charging contacts are those of a generic base: none (a robot without a
-Kobuki dock docks with its own action, which homing does not call yet).
+robot file's ``router`` entry if the router cannot be reached or no
+odometry, scan (and battery, when named) arrive within ``timeouts.first_data``.
 """
 
 from __future__ import annotations
@@ -33,18 +41,23 @@ import math
 import sys
 import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from homing.robot.frames import R_BODY_FROM_OPTICAL, homogeneous, rot_z
 from homing.robot.ros2 import wire
 from homing.robot.ros2.node import Ros2Node
 from homing.robot.ros2.robot_file import Ros2Config, load_ros2_robot, router_error
 from homing.robot.ros2.wire import LATCHED, SENSOR_DATA, Qos, Received
 from homing.robot.turtlebot import RobotLimits, battery_percent
 from homing.robot.types import (
+    IR,
     BatteryState,
     Bumpers,
+    CameraImage,
+    CameraInfo,
     ChargingSource,
     ChargingState,
     DockIR,
@@ -56,6 +69,7 @@ from homing.robot.types import (
 )
 
 LINK_CHECK_PERIOD = 0.2  # [s] between looks at the session's router and peers
+DOCK_IR_TIMEOUT = 0.2  # [s] a dock IR reading older than this reads as nothing seen
 POWER_SUPPLY_CHARGING, POWER_SUPPLY_FULL = 1, 4  # sensor_msgs/BatteryState power_supply_status
 
 
@@ -131,6 +145,11 @@ class Ros2Robot:
         self._scan: Received | None = None
         self._odom: Received | None = None
         self._battery: Received | None = None
+        self._dock_ir: Received | None = None
+        self._image: Received | None = None
+        self._info: Received | None = None
+        self._bumpers = Bumpers()
+        self._camera: tuple[Received, Received, CameraImage] | None = None  # the last image made, and from what
         self._arrived: dict[str, float] = {}  # [s, adapter clock] last sample per topic
         self._got_data = threading.Event()
         self.frames = FrameTree()
@@ -151,13 +170,23 @@ class Ros2Robot:
 
     def _declare(self) -> None:
         c, n = self.config, self.node
-        self.topics = {"scan": wire.qualified(c.scan, c.namespace), "odom": wire.qualified(c.odom, c.namespace)}
+        self.topics = {"odom": wire.qualified(c.odom, c.namespace), "scan": wire.qualified(c.scan, c.namespace)}
+        if c.battery is not None:
+            self.topics["battery"] = wire.qualified(c.battery, c.namespace)
         n.subscribe(c.scan, "sensor_msgs/msg/LaserScan", SENSOR_DATA, lambda r: self._take("scan", r))
         n.subscribe(c.odom, "nav_msgs/msg/Odometry", Qos(), lambda r: self._take("odom", r))
         if c.battery is not None:
             n.subscribe(c.battery, "sensor_msgs/msg/BatteryState", SENSOR_DATA, lambda r: self._take("battery", r))
         n.subscribe(c.tf, "tf2_msgs/msg/TFMessage", Qos(depth=100), self._take_tf)
         n.subscribe(c.tf_static, "tf2_msgs/msg/TFMessage", LATCHED, lambda r: self.frames.add(r.message))
+        if c.dock_ir is not None:
+            n.subscribe(c.dock_ir, "kobuki_ros_interfaces/msg/DockInfraRed", SENSOR_DATA,
+                        lambda r: self._take("dock_ir", r))  # fmt: skip
+        if c.bumper is not None:
+            n.subscribe(c.bumper, "kobuki_ros_interfaces/msg/BumperEvent", Qos(), self._take_bumper)
+        if c.image is not None and c.camera_info is not None:
+            n.subscribe(c.image, "sensor_msgs/msg/Image", SENSOR_DATA, lambda r: self._take("image", r))
+            n.subscribe(c.camera_info, "sensor_msgs/msg/CameraInfo", SENSOR_DATA, lambda r: self._take("info", r))
         self.cmd_type = "geometry_msgs/msg/TwistStamped" if c.stamped else "geometry_msgs/msg/Twist"
         self.cmd_pub = n.publisher(c.cmd_vel, self.cmd_type, Qos())
 
@@ -165,8 +194,14 @@ class Ros2Robot:
         with self._lock:
             setattr(self, f"_{what}", r)
             self._arrived[what] = r.arrived - self._clock.t0
-            if self._odom is not None and self._scan is not None:
+            if self._odom is not None and self._scan is not None and (
+                    self._battery is not None or self.config.battery is None):  # docked or not: ask the battery
                 self._got_data.set()
+
+    def _take_bumper(self, r: Received) -> None:
+        which = ("left", "centre", "right")[min(int(r.message.bumper), 2)]
+        with self._lock:
+            self._bumpers = replace(self._bumpers, **{which: bool(r.message.state)})
 
     def _take_tf(self, r: Received) -> None:
         self.frames.add(r.message, skip_child=self.config.base_frame)
@@ -174,7 +209,7 @@ class Ros2Robot:
     def _wait_for_data(self) -> None:
         c = self.config
         if not self._got_data.wait(c.first_data_timeout):
-            missing = [self.topics[k] for k in ("odom", "scan") if k not in self._arrived]
+            missing = [self.topics[k] for k in self.topics if k not in self._arrived]
             raise router_error(c, f"no {' and no '.join(missing)} from {c.router} within "
                                   f"{c.first_data_timeout:g} s (wrong router, domain, namespace or topic?)")  # fmt: skip
 
@@ -197,7 +232,7 @@ class Ros2Robot:
             return LinkLost(Cause.ROUTER, "router", since)
         c = self.config
         with self._lock:
-            for what, timeout in (("scan", c.scan_timeout), ("odom", c.odom_timeout)):
+            for what, timeout in (("scan", c.scan_timeout), ("odom", c.odom_timeout)):  # the battery may be slow
                 last = self._arrived.get(what, 0.0)
                 if t - last > timeout:
                     return LinkLost(Cause.SILENT, self.topics[what], last)
@@ -219,13 +254,16 @@ class Ros2Robot:
             print(f"[{t:8.2f} s] back: {self.failure.what}", file=sys.stderr)
         self.failure = failure
         with self._lock:
-            scan, odom, battery = self._scan, self._odom, self._battery
+            scan, odom, battery, ir = self._scan, self._odom, self._battery, self._dock_ir
+            image, info, bumpers = self._image, self._info, self._bumpers
             arrived = dict(self._arrived)
+        fresh_ir = ir is not None and t - arrived.get("dock_ir", -math.inf) <= DOCK_IR_TIMEOUT
         return Observation(
             stamp=t, odom=self._odometry(odom, arrived.get("odom", 0.0)),
             scan=self._to_scan(scan, arrived.get("scan", 0.0)) if scan is not None else None,
-            image=None, bumpers=Bumpers(), dock_ir=DockIR(), battery=self._to_battery(battery),
-            devices_lost=(failure.what,) if failure is not None else (),
+            image=self._to_image(image, info, arrived.get("image", 0.0)), bumpers=bumpers,
+            dock_ir=self._to_dock_ir(ir) if fresh_ir and ir is not None else DockIR(),
+            battery=self._to_battery(battery), devices_lost=(failure.what,) if failure is not None else (),
         )  # fmt: skip
 
     def command(self, v: float, omega: float) -> Twist2:
@@ -292,6 +330,33 @@ class Ros2Robot:
         ranges[bad] = np.inf
         return Scan(stamp, float(m.angle_min), float(m.angle_increment), ranges,
                     float(m.range_min), float(m.range_max), pose)  # fmt: skip
+
+    @staticmethod
+    def _to_dock_ir(r: Received) -> DockIR:
+        d = [int(v) for v in r.message.data]
+        if len(d) < 3:
+            return DockIR()
+        return DockIR(IR(d[0] & 63), IR(d[1] & 63), IR(d[2] & 63))  # kobuki's order: right, centre, left
+
+    def _to_image(self, image: Received | None, info: Received | None, stamp: float) -> CameraImage | None:
+        """The latest Image as a CameraImage with the latest CameraInfo's K (None before both came)."""
+        if image is None or info is None:
+            return None
+        if self._camera is not None and self._camera[0] is image and self._camera[1] is info:
+            return self._camera[2]
+        m, k = image.message, info.message.k
+        channels = {"rgb8": 3, "bgr8": 3, "mono8": 1}.get(m.encoding)
+        if channels is None or m.step < m.width * channels or len(m.data) < m.step * m.height:
+            return None  # an encoding homing does not read: no image rather than a wrong one
+        rows = np.asarray(m.data, dtype=np.uint8)[: m.step * m.height].reshape(m.height, m.step)
+        pixels = rows[:, : m.width * channels].reshape(m.height, m.width, channels)
+        pixels = pixels[..., ::-1] if m.encoding == "bgr8" else pixels
+        x, y, z, yaw = self.config.camera_pose
+        cam = CameraInfo(int(m.width), int(m.height), float(k[0]), float(k[4]), float(k[2]), float(k[5]),
+                         homogeneous(rot_z(yaw) @ R_BODY_FROM_OPTICAL, np.array([x, y, z])))  # fmt: skip
+        made = CameraImage(stamp, np.ascontiguousarray(pixels[..., 0] if channels == 1 else pixels), cam)
+        self._camera = (image, info, made)
+        return made
 
     def _to_battery(self, r: Received | None) -> BatteryState:
         if r is None:

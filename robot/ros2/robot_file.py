@@ -18,6 +18,11 @@ namespace would set ``namespace: /tb4`` and keep the relative topic names)::
       cmd_vel: cmd_vel              # geometry_msgs/msg/Twist (or TwistStamped, below)
       tf: /tf
       tf_static: /tf_static
+      dock_ir: null                 # kobuki_ros_interfaces/msg/DockInfraRed (kobuki_ros: sensors/dock_ir)
+      bumper: null                  # kobuki_ros_interfaces/msg/BumperEvent (kobuki_ros: events/bumper)
+      image: null                   # sensor_msgs/msg/Image (rgb8, bgr8 or mono8), for tags
+      camera_info: null             # sensor_msgs/msg/CameraInfo of that image (rectified: its K is used)
+    camera_pose: [0.10, 0.0, 0.30, 0.0]   # optical centre x, y, z [m] in base, and yaw [rad]; looking level
     cmd_vel_type: Twist             # Twist or TwistStamped (Jazzy's Nav2 and ros2_control use the latter)
     frames: {base: base_link, laser: null}   # laser null: the scan's own frame_id
     laser_pose: [0.0, 0.0, 0.0]     # x [m], y [m], yaw [rad] in base: used until /tf_static gives it
@@ -42,9 +47,10 @@ from homing.yamlfile import load, where
 
 TOPICS = {"scan": "scan", "odom": "odom", "battery": "battery_state", "cmd_vel": "cmd_vel",
           "tf": "/tf", "tf_static": "/tf_static"}  # fmt: skip
+OPTIONAL = ("dock_ir", "bumper", "image", "camera_info")  # topics off unless named
 TIMEOUTS = {"scan": 1.0, "odom": 0.5, "first_data": 5.0}  # [s]
 KEYS = ("kind", "router", "domain", "namespace", "node", "topics", "cmd_vel_type", "frames",
-        "laser_pose", "radius", "max_v", "max_omega", "timeouts", "charging_source")  # fmt: skip
+        "laser_pose", "camera_pose", "radius", "max_v", "max_omega", "timeouts", "charging_source")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -74,6 +80,11 @@ class Ros2Config:
     odom_timeout: float = TIMEOUTS["odom"]  # [s]
     first_data_timeout: float = TIMEOUTS["first_data"]  # [s]
     charging_at_dock: bool = True
+    dock_ir: str | None = None
+    bumper: str | None = None
+    image: str | None = None
+    camera_info: str | None = None
+    camera_pose: tuple[float, float, float, float] = (0.10, 0.0, 0.30, 0.0)  # x, y, z [m], yaw [rad]
 
 
 def robot_kind(path: str | Path) -> str:
@@ -111,9 +122,13 @@ def load_ros2_robot(path: str | Path) -> Ros2Config:
 
     topics = dict(TOPICS)
     battery: str | None = TOPICS["battery"]
+    optional: dict[str, str | None] = dict.fromkeys(OPTIONAL)
     if top.has("topics"):
         t = top.section("topics")
-        t.only(tuple(TOPICS))
+        t.only(tuple(TOPICS) + OPTIONAL)
+        for key in OPTIONAL:
+            if t.raw(key) is not None:
+                optional[key] = _name(t, key, "")
         for key in TOPICS:
             if key == "battery" and t.has(key) and t.raw(key) is None:
                 battery = None
@@ -138,7 +153,7 @@ def load_ros2_robot(path: str | Path) -> Ros2Config:
         timeouts = {k: s.number(k, v, positive=True, hi=120.0) for k, v in TIMEOUTS.items()}
     source = top.string("charging_source", "dock", choices=("dock", "adapter"))
     line, col = where(top.doc, "router")
-    return Ros2Config(
+    config = Ros2Config(
         path, router, (line, col), top.integer("domain", 0, lo=0, hi=232), namespace, node,
         topics["scan"], topics["odom"], battery, topics["cmd_vel"], topics["tf"], topics["tf_static"],
         kind == "TwistStamped", base, laser, pose,
@@ -146,7 +161,13 @@ def load_ros2_robot(path: str | Path) -> Ros2Config:
         top.number("max_v", MAX_V, positive=True, hi=5.0),
         top.number("max_omega", MAX_OMEGA, positive=True, hi=10.0),
         timeouts["scan"], timeouts["odom"], timeouts["first_data"], source == "dock",
+        optional["dock_ir"], optional["bumper"], optional["image"], optional["camera_info"],
+        top.vector("camera_pose", 4) if top.has("camera_pose") else (0.10, 0.0, 0.30, 0.0),  # type: ignore[arg-type]
     )  # fmt: skip
+    if (config.image is None) != (config.camera_info is None):
+        key = "image" if config.image is None else "camera_info"
+        raise top.error("topics", f"topics: 'image' and 'camera_info' go together: name '{key}' too")
+    return config
 
 
 def router_error(config: Ros2Config, message: str) -> UserError:

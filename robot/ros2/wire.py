@@ -148,10 +148,39 @@ def qualified(topic: str, namespace: str = "/") -> str:
     return f"{ns}/{topic}"
 
 
+# kobuki_ros_interfaces (kobuki_ros, the Kobuki's ROS 2 driver): the dock's IR and the bumpers' events.
+KOBUKI_MSGS = {
+    "kobuki_ros_interfaces/msg/DockInfraRed": """
+uint8 NEAR_LEFT   =  1
+uint8 NEAR_CENTER =  2
+uint8 NEAR_RIGHT  =  4
+uint8 FAR_LEFT    = 16
+uint8 FAR_CENTER  =  8
+uint8 FAR_RIGHT   = 32
+std_msgs/Header header
+uint8[] data
+""",
+    "kobuki_ros_interfaces/msg/BumperEvent": """
+uint8 LEFT     = 0
+uint8 CENTER   = 1
+uint8 RIGHT    = 2
+uint8 RELEASED = 0
+uint8 PRESSED  = 1
+uint8 bumper
+uint8 state
+""",
+}
+
+
 @cache
 def typestore() -> Any:
-    """rosbags' typestore of ROS 2 Jazzy's message definitions (what a Jazzy or Kilted robot runs)."""
-    return get_typestore(Stores.ROS2_JAZZY)
+    """rosbags' typestore of ROS 2 Jazzy's message definitions (what a Jazzy or Kilted robot runs), and kobuki_ros'."""
+    from rosbags.typesys import get_types_from_msg
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for name, text in KOBUKI_MSGS.items():
+        store.register(get_types_from_msg(text, name))
+    return store
 
 
 def type_hash(typename: str) -> str:
