@@ -445,3 +445,12 @@ def test_a_kobuki_under_kobuki_ros_gives_dock_ir_bumpers_and_camera_frames(tmp_p
         assert wait_until(lambda: not robot.observe().dock_ir.any())  # a dock IR reading goes stale
     finally:
         robot.close()
+
+
+def test_the_example_robot_file_is_a_valid_ros2_robot_file():
+    import homing.robot.ros2 as pkg
+
+    config = load_ros2_robot(Path(pkg.__file__).parent / "robot.example.yaml")
+    assert (config.router, config.scan, config.battery, config.stamped, config.dock_ir) == (
+        "tcp/192.168.1.20:7447", "scan", "battery_state", False, None)
+    assert config.odom_timeout == 0.5 and config.radius == 0.18

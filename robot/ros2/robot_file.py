@@ -3,8 +3,9 @@
 ``homing run MISSION --robot robot.yaml`` reads the file's ``kind`` first
 (:func:`robot_kind`): ``ros2`` opens a :class:`~homing.robot.ros2.adapter.Ros2Robot`,
 anything else (or no ``kind``) the TurtleBot 2 on serial ports. Every mistake
-is reported at ``file:line:col``. Example (a TurtleBot 4 under its ``/tb4``
-namespace would set ``namespace: /tb4`` and keep the relative topic names)::
+is reported at ``file:line:col``. Example (``robot.example.yaml`` beside this
+module has every key; a TurtleBot 4 under its ``/tb4`` namespace would set
+``namespace: /tb4`` and keep the relative topic names)::
 
     kind: ros2
     router: tcp/192.168.1.20:7447   # the robot's rmw_zenohd (Zenoh endpoint; homing is a client of it)
