@@ -3,7 +3,8 @@
 :class:`Ros2Emulation` owns a :class:`homing.sim.SimRobot` and a Zenoh peer
 listening on ``tcp/127.0.0.1:PORT`` (clients connect to it as to a robot's
 ``rmw_zenohd``) that plays a node ``turtlebot`` with the topics a TurtleBot 4
-publishes, and every ``PERIOD`` of wall-clock time:
+publishes (or, given ``router``, a peer that joins that Zenoh router, as
+rmw_zenoh's sessions join ``rmw_zenohd``), and every ``PERIOD`` of wall-clock time:
 
 1. applies the last ``/cmd_vel`` (``geometry_msgs/Twist``) to the simulator,
    or zero when none came for ``CMD_TIMEOUT`` (a base's command watchdog);
@@ -89,7 +90,7 @@ class Ros2Emulation:
     """The simulated robot behind a Zenoh peer on 127.0.0.1 (``port`` 0: a free one)."""
 
     def __init__(self, world: World, folder: str | Path, seed: int = 0, port: int = 0, domain: int = 0,
-                 camera: bool = True):  # fmt: skip
+                 camera: bool = True, router: str | None = None):  # fmt: skip
         from homing.sim.robot import SimRobot
 
         self.folder = Path(folder)
@@ -99,6 +100,7 @@ class Ros2Emulation:
         self._frame_stamp: float | None = None
         self._bumpers: tuple[bool, bool, bool] = (False, False, False)
         self.frames = 0
+        self.router = router  # join this Zenoh router (as rmw_zenoh's sessions do) instead of listening
         self.port = port or free_port()
         self.domain = domain
         self.node: Ros2Node | None = None
@@ -113,7 +115,8 @@ class Ros2Emulation:
 
     @property
     def endpoint(self) -> str:
-        return f"tcp/127.0.0.1:{self.port}"
+        """What a client connects to: the router joined, or this peer's own listening endpoint."""
+        return self.router or f"tcp/127.0.0.1:{self.port}"
 
     @property
     def robot_file(self) -> Path:
@@ -121,7 +124,12 @@ class Ros2Emulation:
 
     def start(self) -> None:
         """Open the peer (a zenoh error if the port cannot be had), declare the topics, write the files, run."""
-        self.node = n = Ros2Node("turtlebot", domain=self.domain, mode="peer", listen=[self.endpoint])
+        if self.router is not None:  # rmw_zenoh's default session: connect to the router, listen on loopback
+            n = Ros2Node("turtlebot", domain=self.domain, mode="peer", connect=[self.router],
+                         listen=["tcp/127.0.0.1:0"])  # fmt: skip
+        else:
+            n = Ros2Node("turtlebot", domain=self.domain, mode="peer", listen=[self.endpoint])
+        self.node = n
         self.odom_pub = n.publisher("/odom", "nav_msgs/msg/Odometry", Qos())
         self.scan_pub = n.publisher("/scan", "sensor_msgs/msg/LaserScan", SENSOR_DATA)
         self.battery_pub = n.publisher("/battery_state", "sensor_msgs/msg/BatteryState", SENSOR_DATA)

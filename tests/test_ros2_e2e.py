@@ -13,6 +13,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -144,3 +145,88 @@ def test_emulate_ros2_rejects_serial_only_options() -> None:
                           capture_output=True, text=True, timeout=120)  # fmt: skip
     assert done.returncode == 2
     assert done.stderr.strip() == "--noise is for the emulated serial devices; it does not apply with --ros2"
+
+
+ROUTER = """
+import sys, threading
+import zenoh
+from homing.robot.ros2.node import session_config
+session = zenoh.open(session_config("router", listen=[sys.argv[1]]))
+print("listening", flush=True)
+threading.Event().wait()
+"""
+
+
+def _router(endpoint: str) -> subprocess.Popen:
+    """A Zenoh router in its own process, as ``rmw_zenohd`` is; returns once it listens."""
+    router = subprocess.Popen([sys.executable, "-c", ROUTER, endpoint], stdout=subprocess.PIPE, text=True)
+    assert router.stdout is not None and router.stdout.readline().strip() == "listening"
+    return router
+
+
+def _distance(emu_dir: Path) -> float:
+    return float(json.loads((emu_dir / "status.json").read_text())["distance"])
+
+
+def _until(predicate, timeout: float) -> bool:  # noqa: ANN001
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _settled(emu_dir: Path, quiet: float, timeout: float) -> float | None:
+    """The distance travelled once it has not changed for ``quiet`` [s] (None if it still changes at ``timeout``)."""
+    deadline = time.monotonic() + timeout
+    last, since = _distance(emu_dir), time.monotonic()
+    while time.monotonic() < deadline:
+        time.sleep(0.05)
+        d = _distance(emu_dir)
+        if d != last:
+            last, since = d, time.monotonic()
+        elif time.monotonic() - since >= quiet:
+            return d
+    return None
+
+
+@pytest.mark.slow
+def test_a_router_killed_mid_run_stops_the_robot_and_the_run_goes_on_when_it_is_back(tmp_path: Path) -> None:
+    from homing.robot.ros2.node import free_port
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    emu_dir = tmp_path / "emu"
+    router = _router(endpoint)
+    emulator = subprocess.Popen(_homing("emulate", "--world", "lab", "--seed", "1", "--ros2", "--router", endpoint,
+                                        "--no-camera", "--dir", str(emu_dir)),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    run = None
+    errors: list[str] = []
+    try:
+        assert emulator.stdout is not None and emulator.stdout.readline().strip() == endpoint
+        run = subprocess.Popen(_homing("run", "explore", "--robot", str(emu_dir / "robot.yaml"), "--until", "40s",
+                                       "--no-view"), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+        reader = threading.Thread(target=lambda: errors.extend(run.stderr), daemon=True)  # type: ignore[union-attr, arg-type]
+        reader.start()
+        assert _until(lambda: _distance(emu_dir) > 0.5, 30.0), "the robot never moved"
+        router.kill()  # as a robot's computer losing power takes rmw_zenohd with it
+        router.wait(10)
+        assert _until(lambda: any("lost: router" in e for e in errors), 10.0), errors
+        # zero commands and the base's watchdog (0.5 s): the robot stops and stays (status.json: once a second)
+        stopped = _settled(emu_dir, quiet=2.5, timeout=8.0)
+        assert stopped is not None, "the robot kept moving without its router"
+        router = _router(endpoint)
+        assert _until(lambda: any("back: " in e for e in errors), 30.0), errors
+        assert _until(lambda: _distance(emu_dir) > stopped + 0.3, 25.0), "the run did not go on"
+        out, _ = run.communicate(timeout=90)
+        reader.join(10)
+    finally:
+        if run is not None and run.poll() is None:
+            run.kill()
+        emulator.send_signal(signal.SIGINT)
+        emulator.communicate(timeout=30)
+        router.kill()
+        router.wait(10)
+    assert run.returncode == 0, out[-2000:] + "".join(errors)[-2000:]
+    assert "stopped: time_limit" in out

@@ -36,6 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "listening on tcp/127.0.0.1:PORT, printed on a line of its own; needs homing[ros2])")
     parser.add_argument("--port", type=int, default=0, metavar="PORT",
                         help="with --ros2: the Zenoh endpoint's TCP port (default: a free one)")
+    parser.add_argument("--router", metavar="ENDPOINT",
+                        help="with --ros2: join this Zenoh router (e.g. tcp/127.0.0.1:7447, an rmw_zenohd) as "
+                        "rmw_zenoh's nodes do, instead of listening; the robot file names the router")
     parser.set_defaults(func=run)
 
 
@@ -74,8 +77,8 @@ def run(args: argparse.Namespace) -> int:
     folder = args.dir or tempfile.mkdtemp(prefix="homing-emulate-")
     if args.ros2:
         return _run_ros2(args, world, folder, until)
-    if args.port:
-        raise UserError("--port is the Zenoh endpoint's port: it needs --ros2")
+    if args.port or args.router:
+        raise UserError(f"{'--port' if args.port else '--router'} is for the Zenoh endpoint: it needs --ros2")
     try:
         emulation = Emulation(world, folder, seed=args.seed, noise=LineNoise(flip=args.noise, seed=args.seed),
                               camera=not args.no_camera, camera_port=args.camera_port,
@@ -123,15 +126,16 @@ def _run_ros2(args: argparse.Namespace, world: object, folder: str, until: float
         raise UserError(f"--ros2 needs the ros2 extra (pip install 'homing[ros2]'): {err}") from None
     try:
         emulation = Ros2Emulation(world, folder, seed=args.seed, port=args.port,  # type: ignore[arg-type]
-                                  camera=not args.no_camera)
+                                  camera=not args.no_camera, router=args.router)
     except OSError as err:
         raise UserError(f"--dir: cannot use {folder}: {err.strerror}", folder) from None
     done = _stop_on_signals()
     try:
         emulation.start()
-    except Exception as err:  # zenoh.ZError: the port is taken
+    except Exception as err:  # zenoh.ZError: the port is taken, the router unreachable
         emulation.robot.close()
-        raise UserError(f"--port: cannot listen on {emulation.endpoint}: {str(err).split(' at /')[0]}") from None
+        what = f"--router: cannot join {args.router}" if args.router else f"--port: cannot listen on {emulation.endpoint}"
+        raise UserError(f"{what}: {str(err).split(' at /')[0]}") from None
     print(emulation.endpoint)
     print(f"robot file: {emulation.robot_file}")
     print(f"world {world.name}, seed {args.seed}: a ROS 2 robot over Zenoh, running until Ctrl-C", flush=True)  # type: ignore[attr-defined]
