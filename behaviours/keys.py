@@ -16,6 +16,7 @@ LOCALIZED_KEY = "/map/localized"  # bool: False while the grid SLAM has lost the
 NAVIGATOR_KEY = "/nav/navigator"  # homing.navigation.Navigator
 EXPLORE_GOAL_KEY = "/explore/goal"  # Pose2 in map or None, written by the Explore leaf
 EXPLORED_KEY = "/explore/explored"  # bool: the last Explore ended "explored" (True) or has gone for a frontier since
+LANDMARKS_KEY = "/slam/landmarks"  # dict[int, Pose2]: tag id → optimised tag pose in map, written by tag_slam
 TAGS_KEY = "/perception/tags"  # this tick's tag measurements in base_link
 FOCUS_KEY = "/perception/focus_until"  # [s] adapter time until which a leaf wants every camera frame looked at
 STAGED_KEY = "/nav/staged"  # Pose2 in odom where the tag servo last reached the staging pose (None: not since it started)

@@ -36,12 +36,18 @@ import math
 from typing import Any
 
 from homing.behaviours.base import HomingBehaviour
-from homing.behaviours.keys import FOCUS_KEY, GRID_KEY, MAP_TO_ODOM_KEY, POSE_KEY, TAGS_KEY
+from homing.behaviours.keys import (
+    FOCUS_KEY,
+    GRID_KEY,
+    LANDMARKS_KEY,
+    MAP_TO_ODOM_KEY,
+    POSE_KEY,
+    TAGS_KEY,
+)
 from homing.behaviours.registry import Param, register, register_service
 from homing.robot import Observation, Pose2, RobotAdapter
 from py_trees.common import Access, Status
 
-LANDMARKS_KEY = "/slam/landmarks"
 REBUILD_SHIFT = 0.03  # [m] a keyframe moved this far since drawn → rebuild the grid
 REBUILD_PERIOD = 5.0  # [s] adapter time between checks for a rebuild
 REBUILD_BATCH = 25  # scans drawn into the grid being rebuilt per tick

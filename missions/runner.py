@@ -37,9 +37,13 @@ from homing.behaviours.keys import (
     CYCLES_KEY,
     DOCK_KEY,
     EXPLORE_GOAL_KEY,
+    GRID_KEY,
     IDLE_KEY,
+    LANDMARKS_KEY,
+    MAP_TO_ODOM_KEY,
     NAVIGATOR_KEY,
     SAVE_KEY,
+    STATE_KEY,
     TAGS_KEY,
 )
 from homing.behaviours.registry import Service
@@ -129,7 +133,7 @@ class Runner:
         for key in ("/robot/observation", "/robot/time", "/cmd_vel", "/mission/state", IDLE_KEY, SAVE_KEY, CYCLES_KEY,
                     DOCK_KEY):
             self.bb.register_key(key=key, access=Access.WRITE)
-        for key in (TAGS_KEY, NAVIGATOR_KEY, EXPLORE_GOAL_KEY):  # logged with --record
+        for key in (TAGS_KEY, NAVIGATOR_KEY, EXPLORE_GOAL_KEY, GRID_KEY, MAP_TO_ODOM_KEY, LANDMARKS_KEY):  # --record, ROS 2 robots
             if key not in self.bb.remappings:
                 self.bb.register_key(key=key, access=Access.READ)
         for key in self.mission.source.view_keys:
@@ -217,6 +221,13 @@ class Runner:
                 lap = _lap(timing, "run directory", lap)
         cmd = self.bb.get("/cmd_vel")
         self.last_command = self.robot.command(cmd.v, cmd.omega) if isinstance(cmd, Twist2) else self.robot.command(0.0, 0.0)
+        publish_world = getattr(self.robot, "publish_world", None)
+        if callable(publish_world):  # a ROS 2 robot shows homing's world model in its graph
+            nav = self.read(NAVIGATOR_KEY)
+            publish_world(grid=self.read(GRID_KEY), map_to_odom=self.read(MAP_TO_ODOM_KEY),
+                          path=getattr(nav, "path", None), goal=self.read(EXPLORE_GOAL_KEY),
+                          state=self.read(STATE_KEY), statuses={n.name: n.status.value for n in self._nodes},
+                          landmarks=self.read(LANDMARKS_KEY))  # fmt: skip
         if rec is not None:
             rec.record_command(obs.stamp, self.last_command)
             rec.record_image(obs.image)

@@ -120,6 +120,7 @@ def test_missing_and_busy_ports_are_one_line_errors(emulation: Emulation, tmp_pa
     ("base: {port: a}\nlidar: {port: b, range_max: 0.1}\n", "'range_max' (0.1 m) must exceed 'range_min'"),
     ("base: {port: a, wheel_seperation: 0.23}\nlidar: {port: b}\n", "did you mean 'wheel_separation'"),
     ("base: {port: a}\nlidar: {port: b}\ncamera: {source: 0, info: nope.yaml}\n", None),
+    ("kind: ros3\nbase: {port: a}\nlidar: {port: b}\n", "1:7: 'kind' must be turtlebot2 or ros2, not 'ros3'"),
 ])  # fmt: skip
 def test_robot_file_mistakes_are_located(tmp_path: Path, text: str, message: str | None) -> None:
     path = tmp_path / "robot.yaml"

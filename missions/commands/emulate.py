@@ -31,7 +31,27 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="serve the camera's MJPEG stream on this localhost port (default: a free one)")
     parser.add_argument("--no-camera", action="store_true", help="no camera (nothing rendered, no stream)")
     parser.add_argument("--until", metavar="DURATION", help="stop after this much time, e.g. 90s (default: Ctrl-C)")
+    parser.add_argument("--ros2", action="store_true",
+                        help="serve the robot as a ROS 2 robot over Zenoh in rmw_zenoh's format instead (a peer "
+                        "listening on tcp/127.0.0.1:PORT, printed on a line of its own; needs homing[ros2])")
+    parser.add_argument("--port", type=int, default=0, metavar="PORT",
+                        help="with --ros2: the Zenoh endpoint's TCP port (default: a free one)")
+    parser.add_argument("--router", metavar="ENDPOINT",
+                        help="with --ros2: join this Zenoh router (e.g. tcp/127.0.0.1:7447, an rmw_zenohd) as "
+                        "rmw_zenoh's nodes do, instead of listening; the robot file names the router")
     parser.set_defaults(func=run)
+
+
+def _stop_on_signals() -> threading.Event:
+    """An event set by SIGINT or SIGTERM (the emulator then stops its devices and says where the robot is)."""
+    done = threading.Event()
+
+    def stop(signum: int, frame: FrameType | None) -> None:
+        done.set()
+
+    signal.signal(signal.SIGINT, stop)
+    signal.signal(signal.SIGTERM, stop)
+    return done
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,19 +75,17 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--until: {err}") from None
     world = load_world(args.world)
     folder = args.dir or tempfile.mkdtemp(prefix="homing-emulate-")
+    if args.ros2:
+        return _run_ros2(args, world, folder, until)
+    if args.port or args.router:
+        raise UserError(f"{'--port' if args.port else '--router'} is for the Zenoh endpoint: it needs --ros2")
     try:
         emulation = Emulation(world, folder, seed=args.seed, noise=LineNoise(flip=args.noise, seed=args.seed),
                               camera=not args.no_camera, camera_port=args.camera_port,
                               dead_time=DEAD_TIME if args.dead_time is None else args.dead_time)  # fmt: skip
     except OSError as err:
         raise UserError(f"--dir: cannot use {folder}: {err.strerror}", folder) from None
-    done = threading.Event()
-
-    def stop(signum: int, frame: FrameType | None) -> None:
-        done.set()
-
-    signal.signal(signal.SIGINT, stop)
-    signal.signal(signal.SIGTERM, stop)
+    done = _stop_on_signals()
     try:
         emulation.start()
     except OSError as err:
@@ -89,5 +107,45 @@ def run(args: argparse.Namespace) -> int:
     x, y, th = s["truth"]
     print(f"stopped at t={s['time']:.1f} s: {s['packets']} packets sent, {s['commands']} commands received, "
           f"{s['frames']} camera frames; robot at ({x:.2f}, {y:.2f}, {th:.2f}), {s['distance']:.2f} m travelled")  # fmt: skip
+    sys.stdout.flush()
+    return 0
+
+
+def _run_ros2(args: argparse.Namespace, world: object, folder: str, until: float | None) -> int:
+    """``--ros2``: the simulator behind a Zenoh peer speaking rmw_zenoh's format (homing.emulators.ros2)."""
+    from homing.errors import UserError
+
+    for flag, value in (("--noise", args.noise), ("--dead-time", args.dead_time), ("--camera-port", args.camera_port)):
+        if value:
+            raise UserError(f"{flag} is for the emulated serial devices; it does not apply with --ros2")
+    if not 0 <= args.port <= 65535:
+        raise UserError(f"--port must be a TCP port in 0..65535, not {args.port}")
+    try:
+        from homing.emulators.ros2 import Ros2Emulation
+    except ImportError as err:
+        raise UserError(f"--ros2 needs the ros2 extra (pip install 'homing[ros2]'): {err}") from None
+    try:
+        emulation = Ros2Emulation(world, folder, seed=args.seed, port=args.port,  # type: ignore[arg-type]
+                                  camera=not args.no_camera, router=args.router)
+    except OSError as err:
+        raise UserError(f"--dir: cannot use {folder}: {err.strerror}", folder) from None
+    done = _stop_on_signals()
+    try:
+        emulation.start()
+    except Exception as err:  # zenoh.ZError: the port is taken, the router unreachable
+        emulation.robot.close()
+        what = f"--router: cannot join {args.router}" if args.router else f"--port: cannot listen on {emulation.endpoint}"
+        raise UserError(f"{what}: {str(err).split(' at /')[0]}") from None
+    print(emulation.endpoint)
+    print(f"robot file: {emulation.robot_file}")
+    print(f"world {world.name}, seed {args.seed}: a ROS 2 robot over Zenoh, running until Ctrl-C", flush=True)  # type: ignore[attr-defined]
+    try:
+        done.wait(until)
+    finally:
+        emulation.stop()
+    s = emulation.status()
+    x, y, th = s["truth"]
+    print(f"stopped at t={s['time']:.1f} s: {s['commands']} commands received; "
+          f"robot at ({x:.2f}, {y:.2f}, {th:.2f}), {s['distance']:.2f} m travelled")  # fmt: skip
     sys.stdout.flush()
     return 0

@@ -155,6 +155,14 @@ def _adapter(args: argparse.Namespace) -> Any:
     if args.adapter:
         return make_adapter(args.adapter, args.seed)
     if args.robot:
+        from homing.robot.ros2.robot_file import robot_kind
+
+        if robot_kind(args.robot) == "ros2":
+            try:
+                from homing.robot.ros2.adapter import open_ros2_robot
+            except ImportError as err:
+                raise UserError(f"a ros2 robot file needs the ros2 extra (pip install 'homing[ros2]'): {err}") from None
+            return open_ros2_robot(args.robot)
         try:
             from homing.robot.hardware.robot import open_robot
         except ImportError as err:

@@ -108,7 +108,11 @@ def load_robot(path: str | Path) -> RobotConfig:
     path = Path(path)
     folder = path.resolve().parent
     top = Section(load(path), path, "robot file")
-    top.only(("base", "lidar", "camera", "computer_battery"))
+    top.only(("kind", "base", "lidar", "camera", "computer_battery"))
+    kind = top.string("kind", "turtlebot2")
+    if kind != "turtlebot2":  # kind: ros2 is read by homing.robot.ros2.robot_file
+        hint = " (a ros2 robot file is opened by homing.robot.ros2)" if kind == "ros2" else ""
+        raise top.error("kind", f"'kind' must be turtlebot2 or ros2, not {kind!r}{hint}")
     for key in ("base", "lidar"):
         if not top.has(key):
             raise top.error(key, f"robot file: missing required section '{key}'")
