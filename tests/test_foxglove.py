@@ -320,3 +320,40 @@ def test_homing_run_foxglove_serves_until_sigterm_then_closes_its_port(client: A
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # past our own connection's TIME_WAIT
         probe.bind(("127.0.0.1", port))
         probe.listen()
+
+
+def _panels(node: Any) -> Iterator[str]:
+    if isinstance(node, str):
+        yield node
+    else:
+        yield from _panels(node["first"])
+        yield from _panels(node["second"])
+
+
+def test_the_layout_opens_on_the_servers_topics() -> None:
+    from importlib.resources import files
+
+    from homing.live.foxglove_messages import BATTERY_SCHEMA, STATE_SCHEMA, TREE_SCHEMA
+
+    layout = json.loads((files("homing.live") / "foxglove_layout.json").read_text())  # shipped as package data
+    panels = layout["configById"]
+    assert sorted(_panels(layout["layout"])) == sorted(panels), "every panel configured is laid out, and only those"
+    assert {p.split("!")[0] for p in panels} == {"3D", "Plot", "StateTransitions", "RosOut", "RawMessages"}
+    server = FoxgloveServer(compile_mission(EXPLORE), port=None)  # the channels, served nowhere
+    try:
+        topics = set(server.channels)
+    finally:
+        server.close()
+    three = next(c for p, c in panels.items() if p.startswith("3D!"))
+    assert {"/map", "/scan", "/plan", "/goal", "/frontiers", "/landmarks"} <= set(three["topics"]) <= topics
+    schemas = {"/battery": BATTERY_SCHEMA, "/mission/state": STATE_SCHEMA, "/tree/status": TREE_SCHEMA}
+    paths = [p["value"] for c in panels.values() for p in c.get("paths", [])]
+    assert "/battery.base.percent" in paths and "/battery.computer.percent" in paths and "/mission/state.state" in paths
+    for path in paths:  # a message path: the topic, then fields the channel's JSON Schema declares
+        topic, *fields = path.split(".")
+        schema: Any = schemas[topic]
+        for name in fields:
+            schema = schema["properties"][name]
+    log = next(c for p, c in panels.items() if p.startswith("RosOut!"))
+    raw = next(c for p, c in panels.items() if p.startswith("RawMessages!"))
+    assert log["topicToRender"] == "/log" and raw["topicPath"] == "/tree/status"
