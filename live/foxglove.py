@@ -12,7 +12,7 @@ the robot's time (a simulated day in minutes).
 
 | topic | schema | when |
 | --- | --- | --- |
-| ``/map`` | ``foxglove.Grid`` (int8 ``occupancy``: −1, 0, 100) | the grid's version changed, and to a new subscriber |
+| ``/map`` | ``foxglove.Grid`` (int8 ``occupancy``: −1, 0, 100) | the grid's version changed (at most ``MAP_HZ``), and to a new subscriber |
 | ``/scan`` | ``foxglove.LaserScan`` (``base_link``) | a new scan |
 | ``/tf`` | ``foxglove.FrameTransforms``: ``map → odom → base_link`` | every snapshot |
 | ``/pose`` | ``foxglove.PoseInFrame`` (``map``) | every snapshot |
@@ -102,9 +102,9 @@ if TYPE_CHECKING:
 
 DEFAULT_PORT = 8765  # Foxglove's usual WebSocket port
 SNAPSHOT_HZ = 20.0  # [Hz] wall-clock snapshots at most
+MAP_HZ = 4.0  # [Hz] wall-clock grids at most (a 300 × 200 grid is 60 kB a message)
 FRONTIER_HZ = 1.0  # [Hz] wall-clock frontier computations at most (a smoothed-frontier pass costs ~10 ms)
 LOG_BACKLOG = 10_000  # log lines waiting for the server thread, at most (the oldest are dropped)
-WAIT = 0.1  # [s] how often the server thread looks at its stop flag
 LANDMARKS_KEY = "/slam/landmarks"  # homing.behaviours.tag_slam_service's
 READS = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY, NAVIGATOR_KEY, EXPLORE_GOAL_KEY, DOCK_KEY, ENERGY_KEY,
          CYCLES_KEY, STATE_KEY, LANDMARKS_KEY)
@@ -166,6 +166,7 @@ class FoxgloveServer:
         self._nodes = [(node, depth) for node, depth in _preorder(mission.root)]
         self._bb: Any = None  # the blackboard client, made at the first tick (the runner clears the blackboard)
         self._grid_version: int | None = None
+        self._next_grid = 0.0  # [s] wall (monotonic): the next grid copy, at the earliest
         self._scan_stamp: float | None = None
         self._next_snapshot = 0.0  # [s] wall (monotonic)
         self._latest: Snapshot | None = None
@@ -182,7 +183,7 @@ class FoxgloveServer:
     # --- the runner's thread ---------------------------------------------------------------------------------
 
     def on_change(self, change: StatusChange) -> None:
-        """Queue one status change as a log line (the runner's ``on_change``)."""
+        """Queue one status change as a log line (the runner's ``on_change``; sent with the next snapshot)."""
         self._logs.append((change.time, change.line(), change.new))
 
     def on_tick(self, runner: Runner, force: bool = False) -> None:
@@ -193,7 +194,7 @@ class FoxgloveServer:
         self._next_snapshot = now + 1.0 / SNAPSHOT_HZ
         if not self._logs and not any(ch.has_sinks() for ch in self.channels.values()):
             return  # nobody is watching and nothing records
-        snap = self._snapshot(runner)
+        snap = self._snapshot(runner, force)
         with self._wake:
             unsent = self._latest
             if unsent is not None:  # replaced before it was sent: keep the grid and scan only it carried
@@ -208,7 +209,7 @@ class FoxgloveServer:
         except KeyError:
             return None
 
-    def _snapshot(self, runner: Runner) -> Snapshot:
+    def _snapshot(self, runner: Runner, force: bool = False) -> Snapshot:
         if self._bb is None:
             self._bb = py_trees.blackboard.Client(name="foxglove")
             for key in READS:
@@ -217,9 +218,11 @@ class FoxgloveServer:
         s = Snapshot(time=float(runner.now), ticks=runner.ticks)
         s.pose, s.map_to_odom = self._read(POSE_KEY), self._read(MAP_TO_ODOM_KEY)
         grid = self._read(GRID_KEY)
-        if grid is not None and (grid.version != self._grid_version or self.resend_grid.is_set()):
+        now = time.monotonic()
+        changed = grid is not None and grid.version != self._grid_version and (force or now >= self._next_grid)
+        if grid is not None and (changed or self.resend_grid.is_set()):
             self.resend_grid.clear()
-            self._grid_version = grid.version
+            self._grid_version, self._next_grid = grid.version, now + 1.0 / MAP_HZ
             s.grid = GridCopy(grid.version, grid.data.copy(), float(grid.resolution), tuple(grid.origin))
         nav = self._read(NAVIGATOR_KEY)
         path = getattr(nav, "path", None)
@@ -270,7 +273,7 @@ class FoxgloveServer:
         while True:
             with self._wake:
                 if self._latest is None and not self._logs and not self._stop:
-                    self._wake.wait(WAIT)
+                    self._wake.wait()  # until a snapshot or close(): an idle server never takes the GIL
                 snap, self._latest, stop = self._latest, None, self._stop
             cpu = time.thread_time()
             try:

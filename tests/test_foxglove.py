@@ -201,7 +201,7 @@ def test_the_map_and_the_pose_during_a_simulated_explore_are_the_runs_own(client
         grid, pose = runner.read(GRID_KEY), runner.read(POSE_KEY)
 
         maps = [m for top, _, m in c.messages if top == "/map"]
-        assert len(maps) >= 3, "the map is sent as it changes"
+        assert len(maps) >= 2, "the map is sent as it changes"
         known = [int(np.count_nonzero(np.frombuffer(m.data, np.int8) >= 0)) for m in maps]
         assert known[-1] > known[0], "the map grows as the robot explores"
         m = maps[-1]  # the grid's last version
