@@ -357,3 +357,27 @@ def test_the_layout_opens_on_the_servers_topics() -> None:
     log = next(c for p, c in panels.items() if p.startswith("RosOut!"))
     raw = next(c for p, c in panels.items() if p.startswith("RawMessages!"))
     assert log["topicToRender"] == "/log" and raw["topicPath"] == "/tree/status"
+
+
+def test_homing_run_foxglove_record_writes_every_channel_as_the_run_goes(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    record = tmp_path / "run.mcap"
+    code, out, err = homing_cli("run", str(EXPLORE), "--world", "lab", "--no-view", "--until", "5s",
+                                "--foxglove-record", str(record))  # no server: the recording alone
+    assert code == 0, err
+    assert "serving Foxglove" not in err
+    lines = [line for line in out.splitlines() if re.match(r"\[\s*[\d.]+ s\] \S.*: \w+ -> \w+$", line)]
+    logged, trees = [], []
+    with open(record, "rb") as stream:
+        for schema, channel, message in make_reader(stream).iter_messages():
+            if channel.topic == "/tree/status":
+                assert schema is not None and schema.encoding == "jsonschema"
+                tree = json.loads(message.data)
+                jsonschema.validate(tree, json.loads(schema.data))
+                trees.append(tree)
+            elif channel.topic == "/log":
+                logged.append(message.data)
+    assert trees and trees[-1]["time"] == pytest.approx(5.0) and trees[-1]["nodes"][0]["name"] == "ExploreMission"
+    assert len(logged) == len(lines) > 0, "every status-change line of the run is a foxglove.Log"
+    assert all(line.encode() in payload for line, payload in zip(lines, logged, strict=True))

@@ -286,7 +286,8 @@ def _foxglove(args: argparse.Namespace, mission: Any) -> Any:
         raise UserError(f"{option} needs the foxglove extra (pip install 'homing[foxglove]'): {err}") from None
     server = FoxgloveServer(mission, host, port, record=record)
     if server.port is not None:
-        print(f"serving Foxglove on ws://{host}:{server.port} (Foxglove: Open connection, Foxglove WebSocket; "
+        where = f"[{host}]" if ":" in host else host
+        print(f"serving Foxglove on ws://{where}:{server.port} (Foxglove: Open connection, Foxglove WebSocket; "
               "layout: live/foxglove_layout.json)", file=sys.stderr, flush=True)  # fmt: skip
     return server
 
