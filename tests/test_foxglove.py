@@ -225,6 +225,15 @@ def test_the_map_and_the_pose_during_a_simulated_explore_are_the_runs_own(client
         _, tree = c.last("/tree/status")
         assert tree["tick"] == runner.ticks and tree["root"] == mission.root.status.value
         assert tree["nodes"][0]["name"] == mission.root.name
+
+        late = client(server.port)  # subscribes once the grid no longer changes: it gets the grid all the same
+        late.subscribe("/map")
+        deadline = time.monotonic() + TIMEOUT
+        while not any(top == "/map" for top, _, _ in late.messages):
+            assert time.monotonic() < deadline, "a late subscriber never got the map"
+            server.on_tick(runner, force=True)  # snapshots of an unchanged grid: only the new subscriber's wish sends it
+            late.read(0.05)
+        assert late.last("/map")[1].data == grid.data.tobytes()
     finally:
         runner.shutdown()
         server.close()
