@@ -32,7 +32,7 @@ real time every tick is one; a run at 100× real time is sampled. The tick's
 thread only copies (the grid only when its version changed, a 200 × 200
 grid in ~10 µs) and hands the latest snapshot over; this module's thread
 builds and sends the messages (and computes the frontiers), and a newer
-snapshot replaces one not yet sent, so a slow client never slows the robot.
+snapshot replaces those not yet sent, so a slow client never slows the robot.
 Log lines are all kept (up to ``LOG_BACKLOG`` waiting).
 
 ``record`` writes the same channels to an MCAP file as the run goes (the
@@ -43,6 +43,7 @@ SDK's ``open_mcap`` on the same context). Nothing listens beyond
 from __future__ import annotations
 
 import collections
+import queue
 import sys
 import threading
 import time
@@ -149,7 +150,8 @@ class FoxgloveServer:
             try:
                 self.writer = foxglove.open_mcap(str(record), allow_overwrite=True, context=self.context)
             except OSError as err:
-                self.close()
+                if self.server is not None:
+                    self.server.stop()
                 raise UserError(f"--foxglove-record: cannot write: {err.strerror or err}", str(record)) from None
         ctx = self.context
         self.channels: dict[str, Any] = {
@@ -169,10 +171,8 @@ class FoxgloveServer:
         self._next_grid = 0.0  # [s] wall (monotonic): the next grid copy, at the earliest
         self._scan_stamp: float | None = None
         self._next_snapshot = 0.0  # [s] wall (monotonic)
-        self._latest: Snapshot | None = None
         self._logs: collections.deque[tuple[float, str, Status]] = collections.deque(maxlen=LOG_BACKLOG)
-        self._wake = threading.Condition()
-        self._stop = False
+        self._queue: queue.SimpleQueue[Snapshot | None] = queue.SimpleQueue()  # None: close
         self.snapshots = 0
         self.errors = 0  # snapshots the server thread could not send
         self.sent: collections.Counter[str] = collections.Counter()  # messages logged per topic
@@ -195,13 +195,7 @@ class FoxgloveServer:
         if not self._logs and not any(ch.has_sinks() for ch in self.channels.values()):
             return  # nobody is watching and nothing records
         snap = self._snapshot(runner, force)
-        with self._wake:
-            unsent = self._latest
-            if unsent is not None:  # replaced before it was sent: keep the grid and scan only it carried
-                snap.grid = snap.grid or unsent.grid
-                snap.scan = snap.scan or unsent.scan
-            self._latest = snap
-            self._wake.notify()
+        self._queue.put(snap)  # C-level and lock-free for the caller: the tick never waits on the server's thread
 
     def _read(self, key: str) -> Any:
         try:
@@ -252,9 +246,7 @@ class FoxgloveServer:
 
     def close(self) -> None:
         """Send what is waiting, stop the thread, stop the server, finish the MCAP file."""
-        with self._wake:
-            self._stop = True
-            self._wake.notify()
+        self._queue.put(None)
         self._thread.join(5.0)
         for channel in getattr(self, "channels", {}).values():
             channel.close()
@@ -270,11 +262,9 @@ class FoxgloveServer:
     def _serve(self) -> None:
         frontier_at, frontier_grid = -1.0, None
         last_grid: GridCopy | None = None
-        while True:
-            with self._wake:
-                if self._latest is None and not self._logs and not self._stop:
-                    self._wake.wait()  # until a snapshot or close(): an idle server never takes the GIL
-                snap, self._latest, stop = self._latest, None, self._stop
+        stop = False
+        while not stop:
+            snap, stop = _latest(self._queue)
             cpu = time.thread_time()
             try:
                 self._send_logs()
@@ -293,8 +283,6 @@ class FoxgloveServer:
                 if self.errors == 1:
                     print(f"foxglove: {type(err).__name__}: {err} (the server goes on)", file=sys.stderr, flush=True)
             self.worker_cpu += time.thread_time() - cpu
-            if stop and self._latest is None:
-                return
 
     def _log(self, topic: str, message: Any, t: float) -> None:
         self.channels[topic].log(message, log_time=nanoseconds(t))
@@ -324,6 +312,27 @@ class FoxgloveServer:
         self._log("/battery", s.batteries, s.time)
         self._log("/mission/state", s.state, s.time)
         self._log("/tree/status", s.tree, s.time)
+
+
+def _latest(waiting: queue.SimpleQueue[Snapshot | None]) -> tuple[Snapshot | None, bool]:
+    """(the newest snapshot waiting, whether close was asked): blocks until there is something.
+
+    Snapshots the server had no time for are dropped, but a grid or a scan
+    that only an older one carried is kept with the newest.
+    """
+    snap: Snapshot | None = None
+    item = waiting.get()  # an idle server sleeps here and never takes the GIL
+    while True:
+        if item is None:
+            return snap, True
+        if snap is not None:
+            item.grid = item.grid or snap.grid
+            item.scan = item.scan or snap.scan
+        snap = item
+        try:
+            item = waiting.get_nowait()
+        except queue.Empty:
+            return snap, False
 
 
 def _preorder(node: Any, depth: int = 0) -> Any:

@@ -390,3 +390,22 @@ def test_homing_run_foxglove_record_writes_every_channel_as_the_run_goes(tmp_pat
     assert trees and trees[-1]["time"] == pytest.approx(5.0) and trees[-1]["nodes"][0]["name"] == "ExploreMission"
     assert len(logged) == len(lines) > 0, "every status-change line of the run is a foxglove.Log"
     assert all(line.encode() in payload for line, payload in zip(lines, logged, strict=True))
+
+
+def test_the_server_thread_takes_the_newest_snapshot_keeping_an_older_ones_grid_and_scan() -> None:
+    import queue
+
+    from homing.live.foxglove import _latest
+    from homing.live.foxglove_messages import GridCopy, Snapshot
+
+    grid = GridCopy(3, np.zeros((2, 2), np.int8), 0.05, (0.0, 0.0))
+    scan = {"stamp": 1.0}
+    waiting: queue.SimpleQueue[Snapshot | None] = queue.SimpleQueue()
+    for snap in (Snapshot(1.0, 1, grid=grid), Snapshot(1.1, 2, scan=scan), Snapshot(1.2, 3)):
+        waiting.put(snap)
+    newest, stop = _latest(waiting)
+    assert newest is not None and (newest.ticks, newest.grid, newest.scan, stop) == (3, grid, scan, False)
+    waiting.put(Snapshot(1.3, 4))
+    waiting.put(None)  # close() after a last snapshot: it is sent, then the thread ends
+    newest, stop = _latest(waiting)
+    assert newest is not None and newest.ticks == 4 and newest.grid is None and stop
