@@ -20,6 +20,7 @@ import re
 import signal
 import socket
 import struct
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -409,3 +410,10 @@ def test_the_server_thread_takes_the_newest_snapshot_keeping_an_older_ones_grid_
     waiting.put(None)  # close() after a last snapshot: it is sent, then the thread ends
     newest, stop = _latest(waiting)
     assert newest is not None and newest.ticks == 4 and newest.grid is None and stop
+
+
+def test_without_the_foxglove_extra_the_option_is_one_line_exit_2(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "homing.live.foxglove", None)  # as if foxglove-sdk were not installed
+    code, _, err = homing_cli("run", str(EXPLORE), "--world", "lab", "--no-view", "--foxglove")
+    assert code == 2
+    assert err.count("\n") == 1 and "pip install 'homing[foxglove]'" in err and "Traceback" not in err, err
