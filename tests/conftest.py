@@ -5,6 +5,11 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import selectors
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -53,3 +58,31 @@ def homing_cli(*argv: str) -> tuple[int, str, str]:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
+
+
+@contextlib.contextmanager
+def serving_run(option: str, banner: str, timeout: float = 60.0) -> Iterator[tuple[subprocess.Popen[str], str]]:
+    """A ``homing run explore --world lab`` subprocess at real time with ``option`` (e.g. ``--groot 0``).
+
+    Yields the process and the stderr line that says where it serves (the first containing ``banner``);
+    the process is killed on the way out if the test did not end it.
+    """
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "homing.missions.cli", "run", str(REPO / "missions" / "explore.yaml"), "--world", "lab",
+         "--no-view", "--speed", "1", "--until", "10min", *option.split()],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )  # fmt: skip
+    try:
+        selector = selectors.DefaultSelector()
+        selector.register(proc.stderr, selectors.EVENT_READ)  # type: ignore[arg-type]
+        deadline = time.monotonic() + timeout
+        line = ""
+        while banner not in line:
+            assert selector.select(max(0.0, deadline - time.monotonic())), "the run never said where it serves"
+            line = proc.stderr.readline()  # type: ignore[union-attr]
+            assert line, "the run ended before serving"
+        yield proc, line
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()

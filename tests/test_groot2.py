@@ -9,14 +9,10 @@ of status with the idle-after codes, msgpack blackboards, and
 
 from __future__ import annotations
 
-import os
 import re
-import selectors
 import signal
 import socket
 import struct
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -34,7 +30,7 @@ from homing.missions.compiler import compile_mission  # noqa: E402
 from homing.missions.runner import Runner, StatusChange  # noqa: E402
 from py_trees.common import Status  # noqa: E402
 
-from tests.conftest import REPO, homing_cli  # noqa: E402
+from tests.conftest import REPO, homing_cli, serving_run  # noqa: E402
 from tests.mission_fakes import FakeRobot  # noqa: E402
 
 REPLY_TIMEOUT = 5.0  # [s] a reply later than this is a failure, not a wait
@@ -391,35 +387,18 @@ def test_a_taken_groot_port_is_one_line_exit_2() -> None:
 
 @pytest.mark.slow
 def test_homing_run_groot_serves_until_sigterm_then_closes_its_ports(client: Any) -> None:
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "homing.missions.cli", "run", str(REPO / "missions" / "explore.yaml"), "--world", "lab",
-         "--no-view", "--speed", "1", "--until", "10min", "--groot", "0"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-    )  # fmt: skip
-    try:
-        selector = selectors.DefaultSelector()
-        selector.register(proc.stderr, selectors.EVENT_READ)  # type: ignore[arg-type]
-        deadline = time.monotonic() + 60.0
-        line = ""
-        while "serving Groot2" not in line:
-            assert selector.select(max(0.0, deadline - time.monotonic())), "the run never said where it serves"
-            line = proc.stderr.readline()  # type: ignore[union-attr]
-            assert line, "the run ended before serving"
+    with serving_run("--groot 0", "serving Groot2") as (proc, line):
         found = re.search(r"on 127\.0\.0\.1:(\d+) \(publisher (\d+)\)", line)
         assert found, line
         port, publisher = int(found[1]), int(found[2])
         sock = client(port)
         assert DET.fromstring(ask_ok(sock, "T", 1)[1]).tag == "root"
+        deadline = time.monotonic() + 60.0
         while 1 not in parse_status(ask_ok(sock, "S", 2)[1]).values():  # polls until the first tick is published
             assert time.monotonic() < deadline, "no node ever ran"
             time.sleep(POLL_INTERVAL)  # as Groot2 polls: not waiting for anything in particular
         proc.send_signal(signal.SIGTERM)
         out, _ = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
     assert proc.returncode == 128 + signal.SIGTERM
     assert "stopped: interrupted by SIGTERM" in out
     for bound in (port, publisher):  # both sockets closed with the run: the ports can be listened on again

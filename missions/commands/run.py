@@ -59,6 +59,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="serve the tree to Groot2's monitor (BT.CPP v4's protocol; PORT and PORT+1, default 1667 and 1668); "
         "binds 127.0.0.1 unless given a host; needs the groot extra",
     )  # fmt: skip
+    parser.add_argument(
+        "--foxglove", metavar="[HOST:]PORT", nargs="?", const="8765",
+        help="serve the run to Foxglove (its WebSocket protocol: map, scan, tf, path, goal, frontiers, tags, "
+        "batteries, state, tree, log; default port 8765; open live/foxglove_layout.json); binds 127.0.0.1 unless "
+        "given a host; needs the foxglove extra",
+    )  # fmt: skip
+    parser.add_argument("--foxglove-record", metavar="PATH.mcap", type=output_file("--foxglove-record"),
+                        help="record the same channels to an MCAP file as the run goes (needs the foxglove extra)")
     keep = parser.add_mutually_exclusive_group()
     keep.add_argument("--run-dir", metavar="DIR",
                       help="save a snapshot (map, tags, counters, the dock) into DIR whenever the mission asks "
@@ -264,6 +272,34 @@ def _groot(args: argparse.Namespace, mission: Any) -> Any:
     return server
 
 
+def _foxglove(args: argparse.Namespace, mission: Any) -> Any:
+    """The Foxglove server (bound before the run starts) and/or MCAP recorder, or None."""
+    record = getattr(args, "foxglove_record", None)
+    if args.foxglove is None and record is None:
+        return None
+    from homing.missions.remote import parse_address
+
+    from homing.errors import UserError
+
+    host, port = "127.0.0.1", None
+    if args.foxglove is not None:
+        try:
+            host, port = parse_address(args.foxglove)
+        except ValueError as err:
+            raise UserError(f"--foxglove: {err}") from None
+    try:
+        from homing.live.foxglove import FoxgloveServer
+    except ImportError as err:
+        option = "--foxglove" if args.foxglove is not None else "--foxglove-record"
+        raise UserError(f"{option} needs the foxglove extra (pip install 'homing[foxglove]'): {err}") from None
+    server = FoxgloveServer(mission, host, port, record=record)
+    if server.port is not None:
+        where = f"[{host}]" if ":" in host else host
+        print(f"serving Foxglove on ws://{where}:{server.port} (Foxglove: Open connection, Foxglove WebSocket; "
+              "layout: live/foxglove_layout.json)", file=sys.stderr, flush=True)  # fmt: skip
+    return server
+
+
 def run(args: argparse.Namespace) -> int:
     from homing.missions.commands.check import overrides
     from homing.missions.compiler import compile_mission
@@ -294,16 +330,19 @@ def run(args: argparse.Namespace) -> int:
     def on_change(change: Any) -> None:
         if groot is not None:
             groot.on_change(change)
+        if fox is not None:
+            fox.on_change(change)
         if status_log is not None:
             status_log(change)
         if not live:
             plain(change)
 
     server = _server(args, mission)
-    groot = None
+    groot = fox = None
     robot = recorder = None
     try:
         groot = _groot(args, mission)
+        fox = _foxglove(args, mission)
         robot = _adapter(args)
         if snap is not None and snap.sim is not None and hasattr(robot, "restore_state"):
             try:
@@ -320,6 +359,8 @@ def run(args: argparse.Namespace) -> int:
         callbacks: list[Any] = [server.publish] if server is not None else []  # after each tick, in order
         if groot is not None:
             callbacks.append(groot.on_tick)
+        if fox is not None:
+            callbacks.append(fox.on_tick)
 
         def on_tick(r: Any) -> None:
             for callback in callbacks:
@@ -336,7 +377,11 @@ def run(args: argparse.Namespace) -> int:
             result = runner.run()
         if server is not None:
             server.publish(runner, force=True)
+        if fox is not None:
+            fox.on_tick(runner, force=True)
     finally:
+        if fox is not None:
+            fox.close()
         if groot is not None:
             groot.close()
         if server is not None:
