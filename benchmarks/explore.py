@@ -113,7 +113,7 @@ class RunResult:
     unseen_place: float = math.nan  # [m²] the largest piece of the navigable area unseen at the end (truth)
 
 
-GENERATED = ("office", "hospital", "slam_office")  # homing.sim.buildings' kinds, run by --generated
+GENERATED = ("office", "hospital", "slam_office", "floor", "atrium")  # homing.sim.buildings' kinds, run by --generated
 KIND_OF_PLAN = {"room": "hall", "corner": "hall", "lab": "hall", "loop": "loop", "loop_with_corridor": "loop",
                 "corridor": "corridor", "room_with_corner": "corridor",  # the public blueprints' kinds
                 "explorebench_room_1": "rooms", "explorebench_room_2": "rooms", "simple_rooms": "rooms",

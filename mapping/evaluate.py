@@ -16,7 +16,7 @@ from typing import Any
 import cv2
 import numpy as np
 from homing.mapping.grid import OccupancyGrid
-from homing.mapping.navigable import Navigable, navigable
+from homing.mapping.navigable import Navigable, disc, inscribed_radius, navigable
 from homing.robot import Pose2
 
 from homing.map_server import FREE, UNKNOWN, MapData
@@ -173,12 +173,15 @@ def _under_navigable(grid: OccupancyGrid, truth: MapData, start_xy: tuple[float,
 
 def unseen_places(grid: OccupancyGrid, truth: MapData, start_xy: tuple[float, float],
                   world_from_map: Pose2 | None = None, min_area: float = 1.0) -> list[float]:
-    """Areas [m²], largest first, of the 8-connected pieces of the navigable area the grid has not observed
-    (unknown under their centres) that are at least ``min_area`` [m²]: a place left unseen, not a corner."""
+    """Areas [m²], largest first, of the places in the navigable area the grid has not observed (unknown under
+    their centres) that are at least ``min_area`` [m²]: the unseen cells the robot's footprint (its inscribed
+    disc) fits in whole, by 8-connected piece (an opening), so a corner, or a strip along a wall the map draws
+    a few cells off (a degree of misregistration over a 20 m wall), is no place."""
     rows, cols, value = _under_navigable(grid, truth, start_xy, world_from_map)
     unseen = np.zeros(truth.grid.shape, np.uint8)
     unseen[rows, cols] = value == UNKNOWN
-    _, _, stats, _ = cv2.connectedComponentsWithStats(unseen, connectivity=8)
+    places = cv2.morphologyEx(unseen, cv2.MORPH_OPEN, disc(inscribed_radius(truth.resolution) / truth.resolution))
+    _, _, stats, _ = cv2.connectedComponentsWithStats(places, connectivity=8)
     areas = stats[1:, cv2.CC_STAT_AREA].astype(float) * truth.resolution**2
     return sorted((float(a) for a in areas if a >= min_area), reverse=True)
 
