@@ -57,6 +57,11 @@ PLUGIN_IDS = {
     "progress_checker_id": "one progress checker (the navigator's)",
 }
 
+CLEARING = {
+    "service_name": "homing has one costmap: its obstacle layer is cleared",
+    "plugins": "homing clears the layers its sensors fill (obstacles, bumper marks); static and keep-out stay",
+}
+
 
 def _nav2(homing: str, ports: dict[str, tuple[str, str]], ignore: dict[str, str] | None = None,
           note: str = "", **fixed: Any) -> Rule:  # fmt: skip
@@ -170,6 +175,26 @@ RULES: dict[str, Rule] = {
     "Wait": _nav2("Wait", {"wait_duration": ("seconds", "float")},
                   {"error_code_id": "homing's Wait never fails, so it has no reason to write"}, seconds=1.0),
     "ClearEntireCostmap": _nav2("ClearCostmap", {}, {"service_name": "homing has one costmap: its obstacle layer is cleared"}),
+    "ClearCostmapAroundRobot": _nav2("ClearCostmapAroundRobot", {"reset_distance": ("reset_distance", "float")},
+                                     CLEARING),
+    "ClearCostmapAroundPose": _nav2("ClearCostmapAroundPose", {"pose": ("pose_key", "key"),
+                                                               "reset_distance": ("reset_distance", "float")},
+                                    CLEARING),
+    "ClearCostmapExceptRegion": _nav2("ClearCostmapExceptRegion", {"reset_distance": ("reset_distance", "float")},
+                                      CLEARING),
+    "TruncatePathLocal": _nav2("TruncatePathLocal", {
+        "input_path": ("input_key", "key"), "output_path": ("output_key", "key"),
+        "distance_forward": ("distance_forward", "float"), "distance_backward": ("distance_backward", "float"),
+        "angular_distance_weight": ("angular_distance_weight", "float"),
+        "max_robot_pose_search_dist": ("max_robot_pose_search_dist", "float"), "pose": ("pose_key", "key")},
+        {"robot_frame": "the robot's pose is /map/pose (base_link in map) unless pose is given"}),
+    "RemoveInCollisionGoals": _nav2("RemoveInCollisionGoals", {
+        "input_goals": ("input_key", "key"), "output_goals": ("output_key", "key"),
+        "cost_threshold": ("cost_threshold", "float"), "use_footprint": ("use_footprint", "bool"),
+        "consider_unknown_as_obstacle": ("consider_unknown_as_obstacle", "bool")},
+        {"service_name": "homing reads its one costmap directly (no get_costs service)",
+         "input_waypoint_statuses": "homing keeps no waypoint statuses",
+         "output_waypoint_statuses": "homing keeps no waypoint statuses"}),
     "RemovePassedGoals": _nav2("RemovePassedGoals", {"input_goals": ("input_key", "key"), "output_goals": ("output_key", "key"),
                                                      "radius": ("radius", "float")}),
     "IsPathValid": _nav2("IsPathValid", {"path": ("path_key", "key")},
@@ -232,21 +257,16 @@ NO_EQUIVALENT: dict[str, str] = {
     "ParallelFirst": "not in BT.CPP 4's factory (a v3-era branch only): use parallel with success: 1",
     "ReactiveParallel": "not in BT.CPP 4's factory (a development branch only): use parallel",
     "AssistedTeleop": "no teleoperation in homing",
-    "ClearCostmapAroundRobot": "homing clears the whole obstacle layer (ClearEntireCostmap)",
-    "ClearCostmapExceptRegion": "homing clears the whole obstacle layer (ClearEntireCostmap)",
     "NavigateThroughPoses": "no through-poses navigator leaf; use ComputePathThroughPoses and FollowPath",
     "SmoothPath": "no path smoother server", "WouldASmootherRecoveryHelp": "no path smoother server",
-    "TruncatePathLocal": "not yet: a window of the path around the robot's closest point (no homing leaf)",
     "TransformAvailable": "no TF in homing", "InitialPoseReceived": "no AMCL initial pose in homing",
     "ReinitializeGlobalLocalization": "no AMCL in homing",
     "CancelAssistedTeleop": "no teleoperation in homing",
     "CancelComputeAndTrackRoute": "halting the tree cancels",
     "AreErrorCodesPresent": "Nav2's numeric codes: use FailureIs with homing's typed reasons",
-    "ClearCostmapAroundPose": "homing clears the whole obstacle layer (ClearEntireCostmap), not a region",
     "ComputeRoute": "no route graph in homing (Nav2's route server plans on a graph of waypoints)",
     "ComputeAndTrackRoute": "no route graph in homing (Nav2's route server)",
     "WouldARouteRecoveryHelp": "no route graph in homing (Nav2's route server's error codes)",
-    "RemoveInCollisionGoals": "not yet: no leaf checks a goal list against the costmap",
 }
 
 # py_trees' composites and decorators (for the README's table; homing reads no py_trees code).
