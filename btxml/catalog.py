@@ -12,7 +12,8 @@ on them with a message rather than dropping them; :data:`PY_TREES` does the
 same for py_trees' composites and decorators, for the README's table.
 
 Conversions (the second item of a port): ``float``, ``int``, ``bool``,
-``text``, ``list`` (BT.CPP's ``a;b;c``), ``key`` (a blackboard port
+``text``, ``list`` (BT.CPP's ``a;b;c``), ``codes`` (Nav2's numeric error codes → homing's
+typed reasons, :data:`NAV2_ERROR_CODES`), ``key`` (a blackboard port
 ``{goal}`` becomes the key parameter ``goal``), ``ms`` (milliseconds →
 seconds), ``abs`` (a distance whatever its sign), ``fraction`` (0..1 → %).
 """
@@ -60,6 +61,22 @@ PLUGIN_IDS = {
 CLEARING = {
     "service_name": "homing has one costmap: its obstacle layer is cleared",
     "plugins": "homing clears the layers its sensors fill (obstacles, bumper marks); static and keep-out stay",
+}
+
+# Nav2's numeric error codes (nav2_msgs FollowPath 1xx, ComputePathToPose 2xx, ComputePathThroughPoses 3xx) as the
+# typed reasons homing's leaves write to their failure_key, for AreErrorCodesPresent.
+NAV2_ERROR_CODES: dict[int, str] = {
+    100: "failed", 103: "invalid_path", 104: "timed_out", 105: "no_progress", 106: "blocked", 107: "timed_out",
+    **{base + off: reason for base in (200, 300) for off, reason in (
+        (0, "failed"), (5, "start_occupied"), (6, "goal_occupied"), (7, "timed_out"), (8, "no_path"))},
+    309: "no_goal",
+}
+NAV2_ERRORS_NEVER_REPORTED: dict[int, str] = {
+    101: "INVALID_CONTROLLER: one controller", 102: "TF_ERROR: no TF",
+    **{base + off: f"{name}: {why}" for base in (200, 300) for off, name, why in (
+        (1, "INVALID_PLANNER", "one planner"), (2, "TF_ERROR", "no TF"),
+        (3, "START_OUTSIDE_MAP", "the costmap grows to span the start"),
+        (4, "GOAL_OUTSIDE_MAP", "the costmap grows to span the goal"))},
 }
 
 
@@ -167,6 +184,9 @@ RULES: dict[str, Rule] = {
                         {"tracking_feedback": "homing's FollowPath reports progress in its feedback message"}),
     "NavigateToPose": _nav2("NavigateToPose", {"goal": ("goal_key", "key"), "error_code_id": ("failure_key", "key")},
                             {"behavior_tree": "homing's NavigateToPose drives with its navigator, not a tree"}),
+    "NavigateThroughPoses": _nav2("NavigateThroughPoses", {"goals": ("goals_key", "key"),
+                                                           "error_code_id": ("failure_key", "key")},
+                                  {"behavior_tree": "homing's NavigateThroughPoses drives with its navigator, not a tree"}),
     "Spin": _nav2("Spin", {"spin_dist": ("angle", "float"), "time_allowance": ("timeout", "float"),
                            "error_code_id": ("failure_key", "key")}, timeout=10.0, angle=1.57),
     "BackUp": _nav2("BackUp", {"backup_dist": ("distance", "abs"), "backup_speed": ("speed", "abs"),
@@ -216,6 +236,8 @@ RULES: dict[str, Rule] = {
                         "navigate_to_staging_pose": "read by the importer: GoHome first unless false"},
                        note="GoHome to the staging pose, then AutoDock (IR): Nav2's DockRobot in homing's leaves"),
     "IsBatteryCharging": _nav2("BatteryCharging", {}, {"battery_topic": "the battery comes from the adapter"}),
+    "AreErrorCodesPresent": _nav2("FailureIs", {"error_code": ("key", "key"), "error_codes_to_check": ("reasons", "codes")},
+                                  note="Nav2's numeric planner and controller error codes as homing's typed reasons"),
     "WouldAPlannerRecoveryHelp": _nav2("FailureIs", {"error_code": ("key", "key")}, reasons=list(PLANNER_REASONS),
                                        note="Nav2's error codes UNKNOWN, NO_VALID_PATH, TIMEOUT as homing's typed reasons"),
     "WouldAControllerRecoveryHelp": _nav2(
@@ -257,13 +279,11 @@ NO_EQUIVALENT: dict[str, str] = {
     "ParallelFirst": "not in BT.CPP 4's factory (a v3-era branch only): use parallel with success: 1",
     "ReactiveParallel": "not in BT.CPP 4's factory (a development branch only): use parallel",
     "AssistedTeleop": "no teleoperation in homing",
-    "NavigateThroughPoses": "no through-poses navigator leaf; use ComputePathThroughPoses and FollowPath",
     "SmoothPath": "no path smoother server", "WouldASmootherRecoveryHelp": "no path smoother server",
     "TransformAvailable": "no TF in homing", "InitialPoseReceived": "no AMCL initial pose in homing",
     "ReinitializeGlobalLocalization": "no AMCL in homing",
     "CancelAssistedTeleop": "no teleoperation in homing",
     "CancelComputeAndTrackRoute": "halting the tree cancels",
-    "AreErrorCodesPresent": "Nav2's numeric codes: use FailureIs with homing's typed reasons",
     "ComputeRoute": "no route graph in homing (Nav2's route server plans on a graph of waypoints)",
     "ComputeAndTrackRoute": "no route graph in homing (Nav2's route server)",
     "WouldARouteRecoveryHelp": "no route graph in homing (Nav2's route server's error codes)",

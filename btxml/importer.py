@@ -307,7 +307,7 @@ class Importer:
             key = port.text if port is not None else text.strip()
             return attr if key == "=" else key
         if port is not None:
-            if conv in ("ms", "abs", "fraction"):
+            if conv in ("ms", "abs", "fraction", "codes"):
                 self.error(el, f"<{tag}> {attr}='{text}': a port read at run time cannot be converted "
                                f"({'milliseconds to seconds' if conv == 'ms' else conv}); give a value", attr)  # fmt: skip
                 return _BAD
@@ -325,10 +325,32 @@ class Importer:
                         "fraction": number * 100.0 if number <= 1.0 else number}[conv]
             if conv == "list":
                 return [t for t in text.split(";") if t]
+            if conv == "codes":
+                return self.error_codes(el, attr, text, tag)
         except ValueError as err:
             self.error(el, f"<{tag}> {attr}='{text}': {err}", attr)
             return _BAD
         return _typed_text(text)
+
+    def error_codes(self, el: Element, attr: str, text: str, tag: str) -> list[str]:
+        """Nav2's numeric error codes (``a;b`` or ``a,b``) as homing's typed reasons; codes homing never reports are noted."""
+        reasons: list[str] = []
+        never: list[str] = []
+        for token in re.split(r"[;,\s]+", text.strip()):
+            if not token:
+                continue
+            code = int(token)
+            if code in catalog.NAV2_ERROR_CODES:
+                reason = catalog.NAV2_ERROR_CODES[code]
+                if reason not in reasons:
+                    reasons.append(reason)
+            elif code in catalog.NAV2_ERRORS_NEVER_REPORTED:
+                never.append(f"{code} ({catalog.NAV2_ERRORS_NEVER_REPORTED[code]})")
+            else:
+                raise ValueError(f"{code} is none of Nav2's planner (2xx, 3xx) or controller (1xx) error codes")
+        if never:
+            self.note(el, f"<{tag}> {attr}: homing never reports {', '.join(never)}", attr)
+        return reasons
 
     def parallel(self, el: Element) -> dict[str, Any]:
         n = len(el.children)

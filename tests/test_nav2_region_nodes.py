@@ -18,6 +18,8 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import py_trees
+import pytest
 from homing.behaviours.costmap_clearing import (
     ClearCostmapAroundPose,
     ClearCostmapAroundRobot,
@@ -31,8 +33,13 @@ from homing.missions.cli import main
 from homing.missions.compiler import compile_mission
 from homing.navigation.costmap import FREE, INSCRIBED, LETHAL, NO_INFORMATION, Costmap
 from homing.robot import Pose2
+from py_trees.common import Status
 
+from homing.errors import UserError
 from tests.mission_fakes import F, S, board, tick
+from tests.test_path_leaves import maze, run_maze  # noqa: F401 - the maze fixture
+
+VIA = [[3.0, 8.5, 0.0], [5.0, 1.0, 0.0], [9.0, 1.0, 0.0]]  # [m, m, rad] poses through the test maze
 
 RES = 0.1  # [m]
 
@@ -301,3 +308,62 @@ def test_remove_in_collision_goals_imports_with_its_ports(tmp_path: Path) -> Non
     params = next(i.params for i in mission.info.values() if i.spec == "RemoveInCollisionGoals")
     assert params == {"input_key": "/goals", "output_key": "/goals", "cost_threshold": 253.0, "use_footprint": False,
                       "consider_unknown_as_obstacle": True}
+
+
+def test_are_error_codes_present_checks_homing_reasons_for_nav2_codes_tick_by_tick(tmp_path: Path) -> None:
+    xml = tmp_path / "codes.xml"
+    xml.write_text("""<root BTCPP_format="4"><BehaviorTree ID="T"><Sequence>
+      <AreErrorCodesPresent error_code="{compute_path_error_code}" error_codes_to_check="208;205;202;105"/>
+    </Sequence></BehaviorTree></root>""")
+    result = import_xml(xml)
+    assert any("homing never reports 202 (TF_ERROR: no TF)" in n for n in result.notes)
+    out = tmp_path / "codes.yaml"
+    out.write_text(result.text)
+    mission = compile_mission(out)
+    leaf = next(b for b in mission.root.iterate() if mission.info[b.id].spec == "FailureIs")
+    assert mission.info[leaf.id].params == {"key": "/compute_path_error_code",
+                                           "reasons": ["no_path", "start_occupied", "no_progress"]}
+    client = board("/compute_path_error_code")
+    assert tick(leaf) == F, "unset: nothing failed"
+    for reason, status in [("no_path", S), (None, F), ("goal_occupied", F), ("start_occupied", S), ("no_progress", S),
+                           ("blocked", F)]:  # fmt: skip
+        client.set("/compute_path_error_code", reason)
+        assert tick(leaf) == status, reason
+
+
+def test_an_unknown_nav2_error_code_is_an_error_at_its_attribute(tmp_path: Path) -> None:
+    xml = tmp_path / "codes.xml"
+    xml.write_text('<root BTCPP_format="4"><BehaviorTree ID="T">\n'
+                   '<AreErrorCodesPresent error_code="{e}" error_codes_to_check="208;701"/></BehaviorTree></root>')
+    with pytest.raises(UserError) as info:
+        import_xml(xml)
+    assert "701 is none of Nav2's planner (2xx, 3xx) or controller (1xx) error codes" in str(info.value)
+    assert f"{xml}:2:" in str(info.value)
+
+
+@pytest.mark.usefixtures("maze")
+def test_navigate_through_poses_passes_each_pose_then_reaches_the_last(tmp_path: Path) -> None:
+    xml = tmp_path / "through.xml"
+    xml.write_text("""<root BTCPP_format="4"><BehaviorTree ID="T">
+      <NavigateThroughPoses goals="{goals}" behavior_tree="" error_code_id="{nav_error}"/>
+    </BehaviorTree></root>""")
+    body = import_xml(xml).text.split("tree:\n", 1)[1]
+    assert body.strip() == "NavigateThroughPoses: {goals_key: goals, failure_key: nav_error}"
+    tree = f"  sequence:\n    - SetBlackboard: {{key: goals, value: {VIA}}}\n    - {body.strip()}\n"
+    runner, log, trail = run_maze(tmp_path, tree, until=200.0)
+    assert runner.result.reason == "success", "\n".join(c.line() for c in log[-20:])  # type: ignore[attr-defined]
+    xy = np.array([(p.x, p.y) for p in trail])
+    near = [int(np.argmin(np.hypot(*(xy - g[:2]).T))) for g in VIA]
+    assert near == sorted(near), "the poses are passed in order"
+    assert min(np.hypot(*(xy - VIA[0][:2]).T)) <= 0.5 + 0.05 and min(np.hypot(*(xy - VIA[1][:2]).T)) <= 0.55
+    assert math.hypot(xy[-1, 0] - VIA[2][0], xy[-1, 1] - VIA[2][1]) <= 0.15 + 1e-6
+    passed = [c for c in log if c.node == "NavigateThroughPoses" and c.new == Status.SUCCESS]
+    assert len(passed) == 1, "one activation: it never stops between the poses"
+
+
+@pytest.mark.usefixtures("maze")
+def test_navigate_through_poses_fails_on_an_empty_list(tmp_path: Path) -> None:
+    tree = "  sequence: [SetBlackboard: {key: goals, value: []}, NavigateThroughPoses: {goals_key: goals}]\n"
+    runner, _, _ = run_maze(tmp_path, tree, until=2.0)
+    assert runner.result.reason == "failure"  # type: ignore[attr-defined]
+    assert py_trees.blackboard.Blackboard.storage.get("/nav/failure") == "no_goal"
