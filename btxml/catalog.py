@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from homing.behaviours.goal_checks import CONTROLLER_REASONS, PLANNER_REASONS
+from homing.behaviours.smoothing import SMOOTHER_REASONS
 
 
 @dataclass(frozen=True)
@@ -63,16 +64,18 @@ CLEARING = {
     "plugins": "homing clears the layers its sensors fill (obstacles, bumper marks); static and keep-out stay",
 }
 
-# Nav2's numeric error codes (nav2_msgs FollowPath 1xx, ComputePathToPose 2xx, ComputePathThroughPoses 3xx) as the
-# typed reasons homing's leaves write to their failure_key, for AreErrorCodesPresent.
+# Nav2's numeric error codes (nav2_msgs FollowPath 1xx, ComputePathToPose 2xx, ComputePathThroughPoses 3xx,
+# SmoothPath 5xx) as the typed reasons homing's leaves write to their failure_key, for AreErrorCodesPresent.
 NAV2_ERROR_CODES: dict[int, str] = {
     100: "failed", 103: "invalid_path", 104: "timed_out", 105: "no_progress", 106: "blocked", 107: "timed_out",
     **{base + off: reason for base in (200, 300) for off, reason in (
         (0, "failed"), (5, "start_occupied"), (6, "goal_occupied"), (7, "timed_out"), (8, "no_path"))},
     309: "no_goal",
+    500: "failed", 502: "timed_out", 503: "smoothed_path_in_collision", 505: "invalid_path",
 }
 NAV2_ERRORS_NEVER_REPORTED: dict[int, str] = {
     101: "INVALID_CONTROLLER: one controller", 102: "TF_ERROR: no TF",
+    501: "INVALID_SMOOTHER: one smoother", 504: "FAILED_TO_SMOOTH_PATH: its smoothing never throws",
     **{base + off: f"{name}: {why}" for base in (200, 300) for off, name, why in (
         (1, "INVALID_PLANNER", "one planner"), (2, "TF_ERROR", "no TF"),
         (3, "START_OUTSIDE_MAP", "the costmap grows to span the start"),
@@ -187,6 +190,17 @@ RULES: dict[str, Rule] = {
     "NavigateThroughPoses": _nav2("NavigateThroughPoses", {"goals": ("goals_key", "key"),
                                                            "error_code_id": ("failure_key", "key")},
                                   {"behavior_tree": "homing's NavigateThroughPoses drives with its navigator, not a tree"}),
+    "SmoothPath": _nav2("SmoothPath", {
+        "unsmoothed_path": ("input_key", "key"), "smoothed_path": ("output_key", "key"),
+        "check_for_collisions": ("check_for_collisions", "bool"), "was_completed": ("completed_key", "key"),
+        "error_code_id": ("failure_key", "key")},
+        {"smoother_id": "homing has one smoother (Nav2's SimpleSmoother)",
+         "max_smoothing_duration": "homing's smoothing is bounded by its sweeps (1000), not the wall clock, so runs "
+                                   "repeat exactly",
+         "smoothing_duration": "homing does not time its smoothing"}),
+    "WouldASmootherRecoveryHelp": _nav2("FailureIs", {"error_code": ("key", "key")}, reasons=list(SMOOTHER_REASONS),
+                                        note="Nav2's UNKNOWN, TIMEOUT, SMOOTHED_PATH_IN_COLLISION as homing's typed "
+                                             "reasons (FAILED_TO_SMOOTH_PATH: homing's smoothing never throws)"),
     "Spin": _nav2("Spin", {"spin_dist": ("angle", "float"), "time_allowance": ("timeout", "float"),
                            "error_code_id": ("failure_key", "key")}, timeout=10.0, angle=1.57),
     "BackUp": _nav2("BackUp", {"backup_dist": ("distance", "abs"), "backup_speed": ("speed", "abs"),
@@ -279,7 +293,6 @@ NO_EQUIVALENT: dict[str, str] = {
     "ParallelFirst": "not in BT.CPP 4's factory (a v3-era branch only): use parallel with success: 1",
     "ReactiveParallel": "not in BT.CPP 4's factory (a development branch only): use parallel",
     "AssistedTeleop": "no teleoperation in homing",
-    "SmoothPath": "no path smoother server", "WouldASmootherRecoveryHelp": "no path smoother server",
     "TransformAvailable": "no TF in homing", "InitialPoseReceived": "no AMCL initial pose in homing",
     "ReinitializeGlobalLocalization": "no AMCL in homing",
     "CancelAssistedTeleop": "no teleoperation in homing",

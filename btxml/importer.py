@@ -347,7 +347,8 @@ class Importer:
             elif code in catalog.NAV2_ERRORS_NEVER_REPORTED:
                 never.append(f"{code} ({catalog.NAV2_ERRORS_NEVER_REPORTED[code]})")
             else:
-                raise ValueError(f"{code} is none of Nav2's planner (2xx, 3xx) or controller (1xx) error codes")
+                raise ValueError(f"{code} is none of Nav2's controller (1xx), planner (2xx, 3xx) or smoother (5xx) "
+                                 "error codes")
         if never:
             self.note(el, f"<{tag}> {attr}: homing never reports {', '.join(never)}", attr)
         return reasons

@@ -28,10 +28,12 @@ from homing.behaviours.costmap_clearing import (
 from homing.behaviours.keys import NAVIGATOR_KEY, POSE_KEY
 from homing.behaviours.path_tools import TruncatePathLocal
 from homing.behaviours.paths import RemoveInCollisionGoals
+from homing.behaviours.smoothing import SmoothPath
 from homing.btxml.importer import import_xml
 from homing.missions.cli import main
 from homing.missions.compiler import compile_mission
 from homing.navigation.costmap import FREE, INSCRIBED, LETHAL, NO_INFORMATION, Costmap
+from homing.navigation.smoother import smooth_path
 from homing.robot import Pose2
 from py_trees.common import Status
 
@@ -310,15 +312,21 @@ def test_remove_in_collision_goals_imports_with_its_ports(tmp_path: Path) -> Non
                       "consider_unknown_as_obstacle": True}
 
 
-def test_are_error_codes_present_checks_homing_reasons_for_nav2_codes_tick_by_tick(tmp_path: Path) -> None:
-    xml = tmp_path / "codes.xml"
-    xml.write_text("""<root BTCPP_format="4"><BehaviorTree ID="T"><Sequence>
-      <AreErrorCodesPresent error_code="{compute_path_error_code}" error_codes_to_check="208;205;202;105"/>
-    </Sequence></BehaviorTree></root>""")
-    result = import_xml(xml)
-    assert any("homing never reports 202 (TF_ERROR: no TF)" in n for n in result.notes)
-    out = tmp_path / "codes.yaml"
+def imported(tmp_path: Path, xml: str, note: str) -> Path:
+    """The mission ``homing import`` writes for ``xml``, having checked that one of its notes says ``note``."""
+    source = tmp_path / "tree.xml"
+    source.write_text(xml)
+    result = import_xml(source)
+    assert any(note in n for n in result.notes), result.notes
+    out = tmp_path / "tree.yaml"
     out.write_text(result.text)
+    return out
+
+
+def test_are_error_codes_present_checks_homing_reasons_for_nav2_codes_tick_by_tick(tmp_path: Path) -> None:
+    out = imported(tmp_path, """<root BTCPP_format="4"><BehaviorTree ID="T"><Sequence>
+      <AreErrorCodesPresent error_code="{compute_path_error_code}" error_codes_to_check="208;205;202;105"/>
+    </Sequence></BehaviorTree></root>""", note="homing never reports 202 (TF_ERROR: no TF)")
     mission = compile_mission(out)
     leaf = next(b for b in mission.root.iterate() if mission.info[b.id].spec == "FailureIs")
     assert mission.info[leaf.id].params == {"key": "/compute_path_error_code",
@@ -337,7 +345,7 @@ def test_an_unknown_nav2_error_code_is_an_error_at_its_attribute(tmp_path: Path)
                    '<AreErrorCodesPresent error_code="{e}" error_codes_to_check="208;701"/></BehaviorTree></root>')
     with pytest.raises(UserError) as info:
         import_xml(xml)
-    assert "701 is none of Nav2's planner (2xx, 3xx) or controller (1xx) error codes" in str(info.value)
+    assert "701 is none of Nav2's controller (1xx), planner (2xx, 3xx) or smoother (5xx) error codes" in str(info.value)
     assert f"{xml}:2:" in str(info.value)
 
 
@@ -367,3 +375,86 @@ def test_navigate_through_poses_fails_on_an_empty_list(tmp_path: Path) -> None:
     runner, _, _ = run_maze(tmp_path, tree, until=2.0)
     assert runner.result.reason == "failure"  # type: ignore[attr-defined]
     assert py_trees.blackboard.Blackboard.storage.get("/nav/failure") == "no_goal"
+
+
+def corner(n: int = 20, step: float = 0.1) -> np.ndarray:
+    """An L: n points up x from (1, 1) m, then n along y: a right-angle corner at (1 + n·step, 1)."""
+    leg = np.arange(n) * step
+    a = np.column_stack([1.0 + leg, np.full(n, 1.0)])
+    b = np.column_stack([np.full(n, 1.0 + n * step), 1.0 + leg])
+    return np.vstack([a, b])
+
+
+def test_smoothing_converges_to_nav2s_fixed_point_and_keeps_the_ends() -> None:
+    path = corner()
+    out, done = smooth_path(path, refinements=0)
+    assert done and out[0].tolist() == path[0].tolist() and out[-1].tolist() == path[-1].tolist()
+    # Converged: every inner point satisfies w_data (x - y) + w_smooth (y+ + y- - 2 y) = 0 (Nav2's update is zero).
+    residual = 0.2 * (path[1:-1] - out[1:-1]) + 0.3 * (out[2:] + out[:-2] - 2.0 * out[1:-1])
+    assert np.abs(residual).max() < 1e-9
+    corner_gap = np.hypot(*(out[len(path) // 2] - (3.0, 1.0)))
+    assert 0.05 < corner_gap < 0.3, "the corner is cut, but not far"
+    refined, done = smooth_path(path)
+    turn = np.abs(np.diff(np.arctan2(*np.diff(refined, axis=0).T[::-1]))).max()
+    assert done and turn < np.abs(np.diff(np.arctan2(*np.diff(out, axis=0).T[::-1]))).max() < math.pi / 2
+    short = corner(5)
+    assert smooth_path(short)[0].tolist() == short.tolist(), "10 points or fewer are left alone"
+
+
+def test_smoothing_stops_before_a_point_would_enter_a_costly_cell() -> None:
+    g = np.zeros((60, 60), dtype=np.int8)
+    g[13, 27] = 100  # a wall cell inside the corner at (2.75, 1.35): cutting the corner comes close to it
+    cm = Costmap()
+    cm.set_static(g, 0.1, (0.0, 0.0))
+    path = corner()
+    assert (cm.cost_at(path) <= 252).all(), "the L itself keeps clear"
+    free, _ = smooth_path(path)
+    assert (cm.cost_at(free) > 252).any(), "without the costmap the smoothing cuts into the wall's margin"
+    out, done = smooth_path(path, cm.cost_at)
+    assert not done and (cm.cost_at(out) <= 252).all(), "the last admissible path, and was_completed false"
+    assert np.abs(out - path).max() > 0.0, "it smoothed as far as it could"
+
+
+def test_smooth_path_leaf_tick_by_tick() -> None:
+    client = board(NAVIGATOR_KEY, "/plan", "/smooth", "/done", "/err")
+    node = SmoothPath("smooth", input_key="/plan", output_key="/smooth", completed_key="/done", failure_key="/err")
+    assert tick(node) == F and client.get("/err") == "no_navigator"
+    cm = free_costmap(60)
+    client.set(NAVIGATOR_KEY, SimpleNamespace(costmap=cm))
+    assert tick(node) == F and client.get("/err") == "invalid_path" and not client.exists("/smooth")
+    plan = np.full((40, 3), math.nan)
+    plan[:, :2], plan[-1, 2] = corner(), 1.2
+    client.set("/plan", plan)
+    assert tick(node) == S and client.get("/err") is None and client.get("/done") is True
+    out = client.get("/smooth")
+    assert out.shape == (40, 3) and out[-1, 2] == 1.2 and np.isnan(out[:-1, 2]).all()
+    assert np.allclose(out[:, :2], smooth_path(corner())[0])
+    mark(cm, (3.05, 2.5))  # an obstacle beside the second leg, within the inscribed radius of it
+    checked = SmoothPath("checked", input_key="/plan", output_key="/smooth", check_for_collisions=True,
+                         failure_key="/err")
+    client.set("/smooth", None)
+    assert tick(checked) == F and client.get("/err") == "smoothed_path_in_collision" and client.get("/smooth") is None
+    assert tick(node) == S and client.get("/done") is False, "unchecked it succeeds, stopped early at the obstacle"
+
+
+def test_smooth_path_and_its_recovery_condition_import_and_check(tmp_path: Path) -> None:
+    out = imported(tmp_path, """<root BTCPP_format="4"><BehaviorTree ID="T"><Sequence>
+      <ComputePathToPose goal="{goal}" path="{path}" error_code_id="{plan_error}"/>
+      <Fallback>
+        <SmoothPath unsmoothed_path="{path}" smoothed_path="{smooth}" smoother_id="simple_smoother"
+                    max_smoothing_duration="3.0" check_for_collisions="true" was_completed="{done}"
+                    error_code_id="{smooth_error}"/>
+        <Sequence>
+          <WouldASmootherRecoveryHelp error_code="{smooth_error}"/>
+          <ClearEntireCostmap/>
+        </Sequence>
+      </Fallback>
+      <AreErrorCodesPresent error_code="{smooth_error}" error_codes_to_check="503;504"/>
+    </Sequence></BehaviorTree></root>""", note="homing never reports 504 (FAILED_TO_SMOOTH_PATH")
+    assert main(["check", str(out)]) == 0
+    mission = compile_mission(out, {"goal": [1.0, 0.0, 0.0]})
+    specs = [(mission.info[b.id].spec, mission.info[b.id].params) for b in mission.root.iterate()]
+    assert ("SmoothPath", {"input_key": "/path", "output_key": "/smooth", "check_for_collisions": True,
+                           "completed_key": "/done", "failure_key": "/smooth_error"}) in specs
+    assert ("FailureIs", {"key": "/smooth_error", "reasons": ["smoothed_path_in_collision", "failed", "timed_out"]}) in specs
+    assert ("FailureIs", {"key": "/smooth_error", "reasons": ["smoothed_path_in_collision"]}) in specs
