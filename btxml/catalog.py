@@ -201,6 +201,15 @@ RULES: dict[str, Rule] = {
     "WouldASmootherRecoveryHelp": _nav2("FailureIs", {"error_code": ("key", "key")}, reasons=list(SMOOTHER_REASONS),
                                         note="Nav2's UNKNOWN, TIMEOUT, SMOOTHED_PATH_IN_COLLISION as homing's typed "
                                              "reasons (FAILED_TO_SMOOTH_PATH: homing's smoothing never throws)"),
+    "ReinitializeGlobalLocalization": _nav2(
+        "ReinitializeGlobalLocalization", {},
+        {"service_name": "homing asks its grid_slam service through /map/relocalize (no AMCL service)"},
+        note="grid_slam looks for the robot in the whole map, as AMCL spreads its particles over it"),
+    "TransformAvailable": Rule("Succeed", {}, {"child": "one of homing's frames (checked by the importer)",
+                                               "parent": "one of homing's frames (checked by the importer)"},
+                               source="Nav2", kind="leaf",
+                               note="homing's frames (map, odom, base_link, laser, camera) are there from the first "
+                                    "tick: the transform is available"),
     "Spin": _nav2("Spin", {"spin_dist": ("angle", "float"), "time_allowance": ("timeout", "float"),
                            "error_code_id": ("failure_key", "key")}, timeout=10.0, angle=1.57),
     "BackUp": _nav2("BackUp", {"backup_dist": ("distance", "abs"), "backup_speed": ("speed", "abs"),
@@ -292,14 +301,18 @@ NO_EQUIVALENT: dict[str, str] = {
     "LatchedFallback": "not in BT.CPP 4's factory (a v3-era branch only): use fallback",
     "ParallelFirst": "not in BT.CPP 4's factory (a v3-era branch only): use parallel with success: 1",
     "ReactiveParallel": "not in BT.CPP 4's factory (a development branch only): use parallel",
-    "AssistedTeleop": "no teleoperation in homing",
-    "TransformAvailable": "no TF in homing", "InitialPoseReceived": "no AMCL initial pose in homing",
-    "ReinitializeGlobalLocalization": "no AMCL in homing",
-    "CancelAssistedTeleop": "no teleoperation in homing",
-    "CancelComputeAndTrackRoute": "halting the tree cancels",
-    "ComputeRoute": "no route graph in homing (Nav2's route server plans on a graph of waypoints)",
-    "ComputeAndTrackRoute": "no route graph in homing (Nav2's route server)",
-    "WouldARouteRecoveryHelp": "no route graph in homing (Nav2's route server's error codes)",
+    "AssistedTeleop": "it drives by an operator's twists on the ROS topic cmd_vel_teleop (Nav2's behavior "
+                      "server), and homing has no operator input",
+    "InitialPoseReceived": "it waits for a pose on ROS's /initialpose topic (RViz's 2D Pose Estimate); homing's "
+                           "SLAM starts at its first pose and takes none",
+    "CancelAssistedTeleop": "it cancels the AssistedTeleop ROS action of Nav2's behavior server, which homing has not",
+    "CancelComputeAndTrackRoute": "it cancels the compute_and_track_route ROS action of Nav2's route server, which "
+                                  "homing has not",
+    "ComputeRoute": "it calls Nav2's route server (the compute_route ROS action, on a GeoJSON graph of waypoints), "
+                    "which homing has not",
+    "ComputeAndTrackRoute": "it calls Nav2's route server (the compute_and_track_route ROS action), which homing has not",
+    "WouldARouteRecoveryHelp": "it reads the error codes of Nav2's route server (a ROS action server), which homing "
+                               "has not",
 }
 
 # py_trees' composites and decorators (for the README's table; homing reads no py_trees code).

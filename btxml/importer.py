@@ -38,11 +38,13 @@ from homing.btxml import catalog
 from homing.btxml.reader import Document, Element, read
 from homing.btxml.yaml_out import mission_text
 from homing.missions.schema import suggest
+from homing.robot import frames
 
 from homing.errors import UserError, UserErrors
 
 BOOLS = {"true": True, "false": False, "1": True, "0": False}
 CALL_ATTRS = ("ID", "name", *catalog.GROOT_ATTRS)
+HOMING_FRAMES = (frames.MAP, frames.ODOM, frames.BASE_LINK, frames.LASER, frames.CAMERA)  # REP-105, all always there
 
 
 @dataclass
@@ -272,6 +274,12 @@ class Importer:
                 self._record_keys(spec, param, value)
         if tag == "IsBatteryLow" and BOOLS.get(el.attrs.get("is_voltage", "false").lower(), False):
             self.error(el, "<IsBatteryLow is_voltage=\"true\">: homing's BatteryBelow compares percentages", "is_voltage")
+        if tag == "TransformAvailable":
+            for attr in ("child", "parent"):
+                frame = el.attrs.get(attr, "").strip().lstrip("/")
+                if frame not in HOMING_FRAMES:
+                    self.error(el, f"<TransformAvailable {attr}=\"{frame}\">: homing's frames are "
+                                   f"{', '.join(HOMING_FRAMES)}", attr)  # fmt: skip
         if rule.homing == "parallel":
             body.update(self.parallel(el))
         if rule.homing == "switch":

@@ -25,7 +25,9 @@ from homing.behaviours.costmap_clearing import (
     ClearCostmapAroundRobot,
     ClearCostmapExceptRegion,
 )
-from homing.behaviours.keys import NAVIGATOR_KEY, POSE_KEY
+from homing.behaviours.grid_slam_service import GridSlamService
+from homing.behaviours.keys import LOCALIZED_KEY, NAVIGATOR_KEY, POSE_KEY, RELOCALIZE_KEY
+from homing.behaviours.localization import ReinitializeGlobalLocalization
 from homing.behaviours.path_tools import TruncatePathLocal
 from homing.behaviours.paths import RemoveInCollisionGoals
 from homing.behaviours.smoothing import SmoothPath
@@ -35,6 +37,7 @@ from homing.missions.compiler import compile_mission
 from homing.navigation.costmap import FREE, INSCRIBED, LETHAL, NO_INFORMATION, Costmap
 from homing.navigation.smoother import smooth_path
 from homing.robot import Pose2
+from homing.sim import SimRobot, load_world
 from py_trees.common import Status
 
 from homing.errors import UserError
@@ -458,3 +461,49 @@ def test_smooth_path_and_its_recovery_condition_import_and_check(tmp_path: Path)
                            "completed_key": "/done", "failure_key": "/smooth_error"}) in specs
     assert ("FailureIs", {"key": "/smooth_error", "reasons": ["smoothed_path_in_collision", "failed", "timed_out"]}) in specs
     assert ("FailureIs", {"key": "/smooth_error", "reasons": ["smoothed_path_in_collision"]}) in specs
+
+
+def test_reinitialize_global_localization_has_grid_slam_find_the_robot_in_the_whole_map() -> None:
+    py_trees.blackboard.Blackboard.clear()
+    robot = SimRobot(load_world("lab"), seed=1)
+    try:
+        service = GridSlamService()
+        client = py_trees.blackboard.Client(name="service:grid_slam")
+        for key in GridSlamService.writes:
+            client.register_key(key=key, access=py_trees.common.Access.WRITE)
+        service.setup(robot, client)
+        leaf = ReinitializeGlobalLocalization("reinit")
+        for i in range(40):  # 8 s: back 0.6 m off the dock, then stand, mapping
+            robot.command(-0.15 if i < 20 else 0.0, 0.0)
+            robot.step(0.2)
+            service.update(robot.observe())
+        assert not robot.observe().battery.on_dock and client.get(LOCALIZED_KEY)
+        here = service.slam.pose
+        service.slam.set_pose(Pose2(here.x + 1.5, here.y - 0.5, here.theta + 0.4), robot.observe().odom.pose)
+        assert tick(leaf) == S and client.get(RELOCALIZE_KEY) is True
+        robot.step(0.2)
+        service.update(robot.observe())
+        assert client.get(RELOCALIZE_KEY) is False and service.reinitialised == 1, "the request is taken once"
+        assert service.slam.lost and not client.get(LOCALIZED_KEY), "lost until a scan is found in the map"
+        for _ in range(10):  # standing still, a scan is fused each second
+            robot.step(0.2)
+            service.update(robot.observe())
+        assert service.slam.last_relocalisation is not None, "the scan was looked for in the whole map"
+        assert client.get(LOCALIZED_KEY) and service.slam.pose.distance_to(here) < 0.1, "found where it stands"
+    finally:
+        robot.close()
+
+
+def test_transform_available_succeeds_for_homings_frames_and_names_the_others(tmp_path: Path) -> None:
+    xml = tmp_path / "tf.xml"
+    xml.write_text('<root BTCPP_format="4"><BehaviorTree ID="T">\n'
+                   '<TransformAvailable child="base_link" parent="/map"/></BehaviorTree></root>')
+    result = import_xml(xml)
+    assert "Succeed" in result.text and any("the transform is available" in n for n in result.notes)
+    xml.write_text('<root BTCPP_format="4"><BehaviorTree ID="T">\n'
+                   '<TransformAvailable child="base_footprint" parent="map"/></BehaviorTree></root>')
+    with pytest.raises(UserError) as info:
+        import_xml(xml)
+    assert str(info.value).startswith(f"{xml}:2:")
+    assert "<TransformAvailable child=\"base_footprint\">: homing's frames are map, odom, base_link, laser, camera" \
+        in str(info.value)
