@@ -128,7 +128,8 @@ RULES: dict[str, Rule] = {
     "ScriptCondition": Rule("ScriptCondition", {"code": ("code", "text")}),
     # ---- Nav2 control nodes and decorators
     "RecoveryNode": Rule("recovery", {"number_of_retries": ("retries", "int")}, kind="control", source="Nav2"),
-    "RoundRobin": Rule("round_robin", kind="control", source="Nav2"),
+    "RoundRobin": Rule("round_robin", ignore={"wrap_around": "homing's round_robin wraps round (checked by the "
+                                                            "importer: only true)"}, kind="control", source="Nav2"),
     "PipelineSequence": Rule("pipeline_sequence", kind="control", source="Nav2"),
     "RateController": Rule("rate_controller", {"hz": ("hz", "float")}, kind="decorator", source="Nav2"),
     "DistanceController": Rule("distance_controller", {"distance": ("distance", "float")}, FRAMES,

@@ -272,6 +272,9 @@ class Importer:
             if value is not _BAD:
                 body[param] = value
                 self._record_keys(spec, param, value)
+        if tag == "RoundRobin" and not BOOLS.get(el.attrs.get("wrap_around", "true").strip().lower(), False):
+            self.error(el, "<RoundRobin wrap_around=\"false\">: homing's round_robin always wraps round to its first "
+                           "child (Nav2's RoundRobin before the port); false is not supported", "wrap_around")  # fmt: skip
         if tag == "IsBatteryLow" and BOOLS.get(el.attrs.get("is_voltage", "false").lower(), False):
             self.error(el, "<IsBatteryLow is_voltage=\"true\">: homing's BatteryBelow compares percentages", "is_voltage")
         if tag == "TransformAvailable":

@@ -507,3 +507,15 @@ def test_transform_available_succeeds_for_homings_frames_and_names_the_others(tm
     assert str(info.value).startswith(f"{xml}:2:")
     assert "<TransformAvailable child=\"base_footprint\">: homing's frames are map, odom, base_link, laser, camera" \
         in str(info.value)
+
+
+def test_round_robin_takes_wrap_around_true_and_refuses_false(tmp_path: Path) -> None:
+    xml = tmp_path / "rr.xml"
+    tree = ('<root BTCPP_format="4"><BehaviorTree ID="T">\n'
+            '<RoundRobin wrap_around="{}"><AlwaysFailure/><AlwaysSuccess/></RoundRobin></BehaviorTree></root>')
+    xml.write_text(tree.format("true"))
+    assert "round_robin" in import_xml(xml).text
+    xml.write_text(tree.format("false"))
+    with pytest.raises(UserError) as info:
+        import_xml(xml)
+    assert f"{xml}:2:" in str(info.value) and "false is not supported" in str(info.value)
