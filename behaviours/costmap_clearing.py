@@ -16,7 +16,7 @@ whole obstacle layer.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 from homing.behaviours.base import HomingBehaviour
 from homing.behaviours.keys import NAVIGATOR_KEY, POSE_KEY
@@ -34,7 +34,7 @@ class _ClearRegion(HomingBehaviour):
     """Clear the navigation costmap inside (``INSIDE``) or outside a square round :meth:`centre`."""
 
     INSIDE = True
-    READS: Any = (NAVIGATOR_KEY, POSE_KEY)
+    READS: ClassVar[tuple[str, ...]] = (NAVIGATOR_KEY, POSE_KEY)
 
     def __init__(self, name: str, reset_distance: float = RESET_DISTANCE, **kwargs: Any) -> None:
         super().__init__(name, **kwargs)

@@ -28,12 +28,13 @@ from homing.behaviours.costmap_clearing import (
 from homing.behaviours.grid_slam_service import GridSlamService
 from homing.behaviours.keys import LOCALIZED_KEY, NAVIGATOR_KEY, POSE_KEY, RELOCALIZE_KEY
 from homing.behaviours.localization import ReinitializeGlobalLocalization
-from homing.behaviours.path_tools import TruncatePathLocal
+from homing.behaviours.path_tools import TruncatePathLocal, path_length
 from homing.behaviours.paths import RemoveInCollisionGoals
 from homing.behaviours.smoothing import SmoothPath
 from homing.btxml.importer import import_xml
 from homing.missions.cli import main
 from homing.missions.compiler import compile_mission
+from homing.missions.runner import Runner
 from homing.navigation.costmap import FREE, INSCRIBED, LETHAL, NO_INFORMATION, Costmap
 from homing.navigation.smoother import smooth_path
 from homing.robot import Pose2
@@ -519,3 +520,24 @@ def test_round_robin_takes_wrap_around_true_and_refuses_false(tmp_path: Path) ->
     with pytest.raises(UserError) as info:
         import_xml(xml)
     assert f"{xml}:2:" in str(info.value) and "false is not supported" in str(info.value)
+
+
+@pytest.mark.slow
+def test_the_tree_with_the_region_nodes_drives_the_simulated_robot_to_a_goal(tmp_path: Path) -> None:
+    xml = tmp_path / "nav.xml"
+    xml.write_text(NAV_TREE)
+    out = tmp_path / "nav.yaml"
+    assert main(["import", str(xml), "-o", str(out)]) == 0
+    robot = SimRobot(load_world("lab"), seed=1, camera=False)
+    start = robot.truth_pose()  # grid SLAM's map frame starts at the robot's first pose
+    goal_world = (8.0, 2.0)  # [m] the lab's east room, behind the partition (as tests/test_btxml.py)
+    goal = start.between(Pose2(goal_world[0], goal_world[1], start.theta))
+    try:
+        result = Runner(compile_mission(out, {"goal": [goal.x, goal.y, goal.theta]}), robot, seed=1, until=150.0).run()
+        end = robot.truth_pose()  # evaluation only
+    finally:
+        robot.close()
+    assert result.reason == "success"
+    assert math.hypot(end.x - goal_world[0], end.y - goal_world[1]) < 0.15 + 0.1  # tolerance + SLAM's drift
+    local = py_trees.blackboard.Blackboard.storage["/local_path"]
+    assert 0 < len(local) and path_length(local) <= 4.0 + 0.1, "TruncatePathLocal kept 1 m behind, 3 m ahead"
