@@ -16,7 +16,11 @@ so most ticks cost a dictionary lookup), and the service writes:
 - ``/map/pose``: base_link in ``map`` (``map_to_odom ⊕ odom``, fresh every tick);
 - ``/map/map_to_odom``: the scan matcher's correction;
 - ``/map/localized``: False while tracking has lost the robot (a kidnap) and
-  the scans are looked for in the whole map (:mod:`homing.mapping.relocalize`).
+  the scans are looked for in the whole map (:mod:`homing.mapping.relocalize`);
+- ``/map/relocalize``: reset to False after it reads True, which a leaf
+  writes to have the robot looked for in the whole map from the next scan
+  (``ReinitializeGlobalLocalization``, as Nav2 asks AMCL to spread its
+  particles over the map).
 
 The dock anchors the pose: a robot charging on its dock stands at the docked
 pose the navigation service knows (``/nav/dock``). When the pose disagrees
@@ -46,7 +50,14 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from homing.behaviours.keys import DOCK_KEY, GRID_KEY, LOCALIZED_KEY, MAP_TO_ODOM_KEY, POSE_KEY
+from homing.behaviours.keys import (
+    DOCK_KEY,
+    GRID_KEY,
+    LOCALIZED_KEY,
+    MAP_TO_ODOM_KEY,
+    POSE_KEY,
+    RELOCALIZE_KEY,
+)
 from homing.behaviours.registry import Param, register_service
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
@@ -67,13 +78,13 @@ DOCK_SCANS = 10  # scans fused after docking, then none until the robot leaves (
         Param("publish_period", float, PUBLISH_PERIOD, "s", "adapter time between grid snapshots on /map/grid (0: live)",
               minimum=0.0),
     ),
-    writes=(GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY),
+    writes=(GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY, RELOCALIZE_KEY),
 )
 class GridSlamService:
     """Scan-matched log-odds occupancy grid; writes ``/map/grid``, ``/map/pose`` and ``/map/map_to_odom``."""
 
     name = "grid_slam"
-    writes = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY)
+    writes = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY, RELOCALIZE_KEY)
 
     def __init__(self, resolution: float = 0.05, use_matcher: bool = True,
                  publish_period: float = PUBLISH_PERIOD) -> None:
@@ -87,6 +98,7 @@ class GridSlamService:
         self.bb: Any = None
         self.scans_fused = 0
         self.anchored = 0  # times the pose was set back to the dock
+        self.reinitialised = 0  # times a leaf had the robot looked for in the whole map
         self.dock_scans = 0  # scans fused since the robot last docked
         self._held: Pose2 | None = None  # the pose a resting robot keeps
         self._next_publish = -math.inf
@@ -98,6 +110,9 @@ class GridSlamService:
 
     def update(self, obs: Observation) -> None:
         """Fuse a new scan if there is one (one scan match + ray trace, ≈ a few ms), then publish."""
+        if self.bb.exists(RELOCALIZE_KEY) and self.bb.get(RELOCALIZE_KEY):
+            self.bb.set(RELOCALIZE_KEY, False, overwrite=True)
+            self.reinitialised += int(self.slam.forget_pose())
         if not obs.battery.on_dock:
             self.dock_scans, self._held = 0, None
         resting = obs.battery.on_dock and self.dock_scans >= DOCK_SCANS

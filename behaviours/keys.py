@@ -13,6 +13,7 @@ GRID_KEY = "/map/grid"  # homing.mapping.grid.OccupancyGrid
 POSE_KEY = "/map/pose"  # Pose2, base_link in map
 MAP_TO_ODOM_KEY = "/map/map_to_odom"  # Pose2
 LOCALIZED_KEY = "/map/localized"  # bool: False while the grid SLAM has lost the robot and searches the map
+RELOCALIZE_KEY = "/map/relocalize"  # bool: a leaf asks grid_slam to forget the pose and search the whole map
 NAVIGATOR_KEY = "/nav/navigator"  # homing.navigation.Navigator
 EXPLORE_GOAL_KEY = "/explore/goal"  # Pose2 in map or None, written by the Explore leaf
 EXPLORED_KEY = "/explore/explored"  # bool: the last Explore ended "explored" (True) or has gone for a frontier since

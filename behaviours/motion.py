@@ -147,6 +147,68 @@ class NavigateToPose(_Navigating):
         return self.step_navigator()
 
 
+@register("NavigateThroughPoses")
+class NavigateThroughPoses(NavigateToPose):
+    """Drive through the goal poses at ``goals_key`` in order, ending at the last: Nav2's ``NavigateThroughPoses``.
+
+    The navigation service's navigator drives to each pose in turn; every
+    pose but the last counts as passed once the robot is within
+    ``pass_radius`` [m] of it, whatever its heading, and the robot goes on to
+    the next one without turning to it (Nav2's through-poses tree drops
+    goals passed within such a radius, ``RemovePassedGoals``). The last pose
+    must be reached within ``xy_tolerance`` [m] and ``yaw_tolerance`` [rad].
+    Poses are Pose2 or ``[x, y, theta]`` in ``map``. FAILS with the typed
+    reason of the leg that failed (``no_path``, ``blocked``, …), or
+    ``no_goal`` for an empty list; the list is read once, when it starts.
+    """
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("goals_key", str, "/goals", doc="blackboard key of the list of goal poses"),
+        Param("pass_radius", float, 0.5, "m", "a pose before the last is passed this close", above=0.0),
+        Param("xy_tolerance", float, 0.15, "m", "the last pose is reached within this distance", above=0.0),
+        Param("yaw_tolerance", float, 0.25, "rad", "and this heading error", above=0.0),
+        FAILURE_PARAM,
+        TIMEOUT_PARAM,
+    )
+    READS = (OBSERVATION_KEY, NAVIGATOR_KEY, GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, "$goals_key")
+
+    def __init__(self, name: str, goals_key: str = "/goals", pass_radius: float = 0.5, xy_tolerance: float = 0.15,
+                 yaw_tolerance: float = 0.25, timeout: float = 0.0, failure_key: str = FAILURE_KEY) -> None:  # fmt: skip
+        self.goals_key = goals_key
+        super().__init__(name, goal_key=goals_key, xy_tolerance=xy_tolerance, yaw_tolerance=yaw_tolerance,
+                         timeout=timeout, failure_key=failure_key)  # fmt: skip
+        self.pass_radius = pass_radius
+        self.goals: list[Pose2] = []
+        self.leg = 0
+
+    def on_start(self) -> Status | None:
+        from homing.behaviours.paths import as_poses  # paths builds on this module
+
+        self.navigator = self.read(NAVIGATOR_KEY)
+        if self.navigator is None:
+            return self.fail("no_navigator", "no navigation service (add 'navigation' to services)")
+        self.goals = as_poses(self.read(self.goals_key)) or []
+        if not self.goals:
+            return self.fail("no_goal", f"no goal poses at {self.goals_key}")
+        self.leg = 0
+        self._start_leg()
+        return None
+
+    def _start_leg(self) -> None:
+        last = self.leg == len(self.goals) - 1
+        self.navigator.set_goal(self.goals[self.leg], self.xy_tolerance if last else self.pass_radius,
+                                self.yaw_tolerance if last else math.inf)  # fmt: skip
+
+    def on_running(self) -> Status:
+        status = self.step_navigator()
+        if status == Status.SUCCESS and self.leg < len(self.goals) - 1:
+            self.leg += 1
+            self._start_leg()
+            self.feedback_message = f"passed pose {self.leg} of {len(self.goals)}"
+            return Status.RUNNING
+        return status
+
+
 class _MotionLeaf(_ReportsFailure):
     """Runs one :mod:`homing.navigation.recovery` motion on odometry and the scan until it ends."""
 

@@ -1,6 +1,7 @@
 """Nav2's path and pose utility nodes over blackboard paths: truncate, pick a pose, concatenate, compare, time out.
 
 Semantics from Nav2's ``nav2_behavior_tree/plugins`` (``truncate_path_action``,
+``truncate_path_local_action``,
 ``get_pose_from_path_action``, ``concatenate_paths_action``,
 ``are_poses_near_condition``, ``path_expiring_timer_condition``,
 ``decorator/path_longer_on_approach``). Paths are homing's blackboard paths
@@ -87,6 +88,98 @@ class TruncatePath(HomingBehaviour):
         out[-1, 2] = math.atan2(dy, dx)  # atan2(0, 0) = 0: Nav2's fallback for an invalid angle
         self.write(self.output_key, out)
         self.feedback_message = f"{len(path)} -> {n} points"
+        return Status.SUCCESS
+
+
+def _first_after(path: np.ndarray, start: int, step: int, distance: float) -> int:
+    """The first index from ``start`` (walking by ``step``) past ``distance`` [m] along the path, or one past the end.
+
+    Nav2's ``first_after_integrated_distance``: the points up to it (exclusive)
+    lie within ``distance`` of ``start`` measured along the path.
+    """
+    stop = len(path) if step > 0 else -1
+    travelled = 0.0
+    i = start
+    while i + step != stop:
+        travelled += math.dist(path[i, :2], path[i + step, :2])
+        if travelled > distance:
+            return i + step
+        i += step
+    return stop
+
+
+@register("TruncatePathLocal")
+class TruncatePathLocal(HomingBehaviour):
+    """Write the stretch of the path round the robot's closest pose and SUCCEED: Nav2's ``TruncatePathLocal``.
+
+    The closest pose minimises ``sqrt(dx² + dy² + (w·dθ)²)`` over the path's
+    poses, with dx, dy [m] to the robot and dθ [rad] between the robot's
+    heading and the path's there (along the path; the end heading at the
+    end), w = ``angular_distance_weight`` [m/rad]: with w > 0 a path that
+    loops back or reverses at a cusp gives the pose the robot is facing
+    along, not the nearest one behind it. Ties go to the later pose. The
+    output keeps the poses within ``distance_backward`` [m] before it and
+    ``distance_forward`` [m] after it, measured along the path; its last row
+    holds the heading along the path there (the original end heading when
+    the window reaches the end). With ``max_robot_pose_search_dist`` [m]
+    (nan: the whole path) the search starts at the last closest pose and
+    spans that much path, so a loop's far side is never taken, until the
+    path changes. An empty path is passed on; FAILURE without a robot pose.
+    The robot's pose is ``/map/pose`` unless ``pose_key`` names another.
+    """
+
+    PARAMS = (
+        Param("distance_forward", float, 8.0, "m", "path kept ahead of the closest pose", minimum=0.0),
+        Param("distance_backward", float, 4.0, "m", "path kept behind the closest pose", minimum=0.0),
+        Param("angular_distance_weight", float, 0.0, "m/rad", "weight of the heading difference", minimum=0.0),
+        Param("max_robot_pose_search_dist", float, math.nan, "m",
+              "search this much path from the last closest pose (nan: all of it)", above=0.0),
+        Param("input_key", str, PATH_KEY, doc="blackboard key of the path"),
+        Param("output_key", str, PATH_KEY, doc="blackboard key the stretch is written to"),
+        Param("pose_key", str, POSE_KEY, doc="blackboard key of the robot's pose (map)"),
+    )
+    READS = ("$input_key", "$pose_key")
+    WRITES = ("$output_key",)
+
+    def __init__(self, name: str, distance_forward: float = 8.0, distance_backward: float = 4.0,
+                 angular_distance_weight: float = 0.0, max_robot_pose_search_dist: float = math.nan,
+                 input_key: str = PATH_KEY, output_key: str = PATH_KEY, pose_key: str = POSE_KEY):  # fmt: skip
+        self.input_key, self.output_key, self.pose_key = input_key, output_key, pose_key
+        super().__init__(name)
+        self.forward, self.backward = distance_forward, distance_backward
+        self.weight, self.search = angular_distance_weight, max_robot_pose_search_dist
+        self.path = np.zeros((0, 3))
+        self.begin = 0  # where the closest-pose search starts (pruning only)
+
+    def update(self) -> Status:
+        new = as_path(self.read(self.input_key))
+        pruning = not math.isnan(self.search)
+        if not pruning or not np.array_equal(new, self.path, equal_nan=True):
+            self.path, self.begin = new, 0
+        pose = as_pose(self.read(self.pose_key))
+        if pose is None:
+            self.feedback_message = f"no robot pose at {self.pose_key}"
+            return Status.FAILURE
+        path = self.path
+        if len(path) == 0:
+            self.write(self.output_key, path)
+            return Status.SUCCESS
+        end = _first_after(path, self.begin, 1, self.search) if pruning else len(path)
+        best, closest = math.inf, self.begin
+        for i in range(self.begin, end):
+            dtheta = abs(math.remainder(pose.theta - _heading_at(path, i), math.tau))
+            d = math.hypot(path[i, 0] - pose.x, path[i, 1] - pose.y, self.weight * dtheta)
+            if d <= best:
+                best, closest = d, i
+        if pruning:
+            self.begin = closest
+        stop = _first_after(path, closest, 1, self.forward)
+        start = _first_after(path, closest, -1, self.backward) + 1
+        out = path[start:stop].copy()
+        out[:, 2] = math.nan
+        out[-1, 2] = path[-1, 2] if stop == len(path) else _heading_at(path, stop - 1)
+        self.write(self.output_key, out)
+        self.feedback_message = f"points {start}..{stop - 1} of {len(path)} round point {closest}"
         return Status.SUCCESS
 
 

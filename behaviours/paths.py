@@ -39,6 +39,7 @@ from homing.behaviours.motion import (
     failure_reason,
 )
 from homing.behaviours.registry import Param, register
+from homing.navigation.costmap import INSCRIBED, LETHAL, NO_INFORMATION
 from homing.navigation.planner import PlanningError
 from homing.robot import Pose2
 from py_trees.common import Status
@@ -244,6 +245,62 @@ class RemovePassedGoals(HomingBehaviour):
             goals.pop(0)
         self.write(self.output_key, goals)
         self.feedback_message = f"{len(goals)} goals left"
+        return Status.SUCCESS
+
+
+@register("RemoveInCollisionGoals")
+class RemoveInCollisionGoals(HomingBehaviour):
+    """Drop the goals that lie on costly cells of the costmap, keep the others in order: Nav2's ``RemoveInCollisionGoals``.
+
+    A goal is kept when its cost is below ``cost_threshold`` (Nav2's 0..255
+    scale: 253 inscribed, 254 lethal), or when it is unknown (255) and
+    ``consider_unknown_as_obstacle`` is false; a goal outside the costmap is
+    unknown. Its cost is the navigation costmap's at its (x, y) [m, ``map``]
+    (``use_footprint`` false: Nav2's point cost), or with ``use_footprint``
+    (Nav2's default) the cost of the robot's round footprint there: lethal
+    where the centre's is inscribed (the rim touches a lethal cell), the
+    centre's otherwise. With the default threshold 254, goals where the
+    robot would touch an obstacle are dropped, as in Nav2.
+    Writes the goals kept to ``output_key`` (an empty list if none is) and
+    SUCCEEDS; FAILS without a navigation service or a goal list, as Nav2
+    fails when its costmap service does not answer. Use it before
+    ``ComputePathThroughPoses`` so that an occupied waypoint is skipped,
+    not waited for.
+    """
+
+    PARAMS = (
+        Param("input_key", str, "/goals", doc="blackboard key of the list of goal poses"),
+        Param("output_key", str, "/goals", doc="blackboard key the goals kept are written to"),
+        Param("cost_threshold", float, 254.0, doc="goals on a cost at or above this are dropped (0..255)",
+              minimum=0.0, maximum=255.0),
+        Param("use_footprint", bool, True, doc="the robot's footprint cost, not the point cost"),
+        Param("consider_unknown_as_obstacle", bool, False, doc="drop goals on unknown cells too"),
+    )
+    READS = (NAVIGATOR_KEY, "$input_key")
+    WRITES = ("$output_key",)
+
+    def __init__(self, name: str, input_key: str = "/goals", output_key: str = "/goals", cost_threshold: float = 254.0,
+                 use_footprint: bool = True, consider_unknown_as_obstacle: bool = False):  # fmt: skip
+        self.input_key, self.output_key = input_key, output_key
+        super().__init__(name)
+        self.cost_threshold, self.unknown_is_obstacle = cost_threshold, consider_unknown_as_obstacle
+        self.use_footprint = use_footprint
+
+    def update(self) -> Status:
+        navigator, goals = self.read(NAVIGATOR_KEY), as_poses(self.read(self.input_key))
+        if navigator is None or goals is None:
+            self.feedback_message = "no navigation service" if navigator is None else f"no goal list at {self.input_key}"
+            return Status.FAILURE
+        if not goals:
+            self.write(self.output_key, [])
+            return Status.SUCCESS
+        costs = navigator.costmap.cost_at(np.array([[g.x, g.y] for g in goals]))
+        if self.use_footprint:
+            costs = np.where(costs == INSCRIBED, LETHAL, costs)
+        kept = [g for g, c in zip(goals, costs, strict=True)
+                if (c == NO_INFORMATION and not self.unknown_is_obstacle) or c < self.cost_threshold]
+        self.write(self.output_key, kept)
+        self.feedback_message = f"{len(kept)} of {len(goals)} goals clear" if kept else "every goal is in collision"
         return Status.SUCCESS
 
 

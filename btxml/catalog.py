@@ -12,7 +12,8 @@ on them with a message rather than dropping them; :data:`PY_TREES` does the
 same for py_trees' composites and decorators, for the README's table.
 
 Conversions (the second item of a port): ``float``, ``int``, ``bool``,
-``text``, ``list`` (BT.CPP's ``a;b;c``), ``key`` (a blackboard port
+``text``, ``list`` (BT.CPP's ``a;b;c``), ``codes`` (Nav2's numeric error codes → homing's
+typed reasons, :data:`NAV2_ERROR_CODES`), ``key`` (a blackboard port
 ``{goal}`` becomes the key parameter ``goal``), ``ms`` (milliseconds →
 seconds), ``abs`` (a distance whatever its sign), ``fraction`` (0..1 → %).
 """
@@ -23,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from homing.behaviours.goal_checks import CONTROLLER_REASONS, PLANNER_REASONS
+from homing.behaviours.smoothing import SMOOTHER_REASONS
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,29 @@ PLUGIN_IDS = {
     "controller_id": "homing's navigation service has one controller, chosen in services:",
     "goal_checker_id": "one goal checker (the tolerances of FollowPath)",
     "progress_checker_id": "one progress checker (the navigator's)",
+}
+
+CLEARING = {
+    "service_name": "homing has one costmap: its obstacle layer is cleared",
+    "plugins": "homing clears the layers its sensors fill (obstacles, bumper marks); static and keep-out stay",
+}
+
+# Nav2's numeric error codes (nav2_msgs FollowPath 1xx, ComputePathToPose 2xx, ComputePathThroughPoses 3xx,
+# SmoothPath 5xx) as the typed reasons homing's leaves write to their failure_key, for AreErrorCodesPresent.
+NAV2_ERROR_CODES: dict[int, str] = {
+    100: "failed", 103: "invalid_path", 104: "timed_out", 105: "no_progress", 106: "blocked", 107: "timed_out",
+    **{base + off: reason for base in (200, 300) for off, reason in (
+        (0, "failed"), (5, "start_occupied"), (6, "goal_occupied"), (7, "timed_out"), (8, "no_path"))},
+    309: "no_goal",
+    500: "failed", 502: "timed_out", 503: "smoothed_path_in_collision", 505: "invalid_path",
+}
+NAV2_ERRORS_NEVER_REPORTED: dict[int, str] = {
+    101: "INVALID_CONTROLLER: one controller", 102: "TF_ERROR: no TF",
+    501: "INVALID_SMOOTHER: one smoother", 504: "FAILED_TO_SMOOTH_PATH: its smoothing never throws",
+    **{base + off: f"{name}: {why}" for base in (200, 300) for off, name, why in (
+        (1, "INVALID_PLANNER", "one planner"), (2, "TF_ERROR", "no TF"),
+        (3, "START_OUTSIDE_MAP", "the costmap grows to span the start"),
+        (4, "GOAL_OUTSIDE_MAP", "the costmap grows to span the goal"))},
 }
 
 
@@ -103,7 +128,8 @@ RULES: dict[str, Rule] = {
     "ScriptCondition": Rule("ScriptCondition", {"code": ("code", "text")}),
     # ---- Nav2 control nodes and decorators
     "RecoveryNode": Rule("recovery", {"number_of_retries": ("retries", "int")}, kind="control", source="Nav2"),
-    "RoundRobin": Rule("round_robin", kind="control", source="Nav2"),
+    "RoundRobin": Rule("round_robin", ignore={"wrap_around": "homing's round_robin wraps round (checked by the "
+                                                            "importer: only true)"}, kind="control", source="Nav2"),
     "PipelineSequence": Rule("pipeline_sequence", kind="control", source="Nav2"),
     "RateController": Rule("rate_controller", {"hz": ("hz", "float")}, kind="decorator", source="Nav2"),
     "DistanceController": Rule("distance_controller", {"distance": ("distance", "float")}, FRAMES,
@@ -162,6 +188,29 @@ RULES: dict[str, Rule] = {
                         {"tracking_feedback": "homing's FollowPath reports progress in its feedback message"}),
     "NavigateToPose": _nav2("NavigateToPose", {"goal": ("goal_key", "key"), "error_code_id": ("failure_key", "key")},
                             {"behavior_tree": "homing's NavigateToPose drives with its navigator, not a tree"}),
+    "NavigateThroughPoses": _nav2("NavigateThroughPoses", {"goals": ("goals_key", "key"),
+                                                           "error_code_id": ("failure_key", "key")},
+                                  {"behavior_tree": "homing's NavigateThroughPoses drives with its navigator, not a tree"}),
+    "SmoothPath": _nav2("SmoothPath", {
+        "unsmoothed_path": ("input_key", "key"), "smoothed_path": ("output_key", "key"),
+        "check_for_collisions": ("check_for_collisions", "bool"), "was_completed": ("completed_key", "key"),
+        "error_code_id": ("failure_key", "key")},
+        {"smoother_id": "homing has one smoother (Nav2's SimpleSmoother)",
+         "max_smoothing_duration": "homing's smoothing is bounded by its sweeps (1000), not the wall clock, so runs "
+                                   "repeat exactly",
+         "smoothing_duration": "homing does not time its smoothing"}),
+    "WouldASmootherRecoveryHelp": _nav2("FailureIs", {"error_code": ("key", "key")}, reasons=list(SMOOTHER_REASONS),
+                                        note="Nav2's UNKNOWN, TIMEOUT, SMOOTHED_PATH_IN_COLLISION as homing's typed "
+                                             "reasons (FAILED_TO_SMOOTH_PATH: homing's smoothing never throws)"),
+    "ReinitializeGlobalLocalization": _nav2(
+        "ReinitializeGlobalLocalization", {},
+        {"service_name": "homing asks its grid_slam service through /map/relocalize (no AMCL service)"},
+        note="grid_slam looks for the robot in the whole map, as AMCL spreads its particles over it"),
+    "TransformAvailable": Rule("Succeed", {}, {"child": "one of homing's frames (checked by the importer)",
+                                               "parent": "one of homing's frames (checked by the importer)"},
+                               source="Nav2", kind="leaf",
+                               note="homing's frames (map, odom, base_link, laser, camera) are there from the first "
+                                    "tick: the transform is available"),
     "Spin": _nav2("Spin", {"spin_dist": ("angle", "float"), "time_allowance": ("timeout", "float"),
                            "error_code_id": ("failure_key", "key")}, timeout=10.0, angle=1.57),
     "BackUp": _nav2("BackUp", {"backup_dist": ("distance", "abs"), "backup_speed": ("speed", "abs"),
@@ -170,6 +219,26 @@ RULES: dict[str, Rule] = {
     "Wait": _nav2("Wait", {"wait_duration": ("seconds", "float")},
                   {"error_code_id": "homing's Wait never fails, so it has no reason to write"}, seconds=1.0),
     "ClearEntireCostmap": _nav2("ClearCostmap", {}, {"service_name": "homing has one costmap: its obstacle layer is cleared"}),
+    "ClearCostmapAroundRobot": _nav2("ClearCostmapAroundRobot", {"reset_distance": ("reset_distance", "float")},
+                                     CLEARING),
+    "ClearCostmapAroundPose": _nav2("ClearCostmapAroundPose", {"pose": ("pose_key", "key"),
+                                                               "reset_distance": ("reset_distance", "float")},
+                                    CLEARING),
+    "ClearCostmapExceptRegion": _nav2("ClearCostmapExceptRegion", {"reset_distance": ("reset_distance", "float")},
+                                      CLEARING),
+    "TruncatePathLocal": _nav2("TruncatePathLocal", {
+        "input_path": ("input_key", "key"), "output_path": ("output_key", "key"),
+        "distance_forward": ("distance_forward", "float"), "distance_backward": ("distance_backward", "float"),
+        "angular_distance_weight": ("angular_distance_weight", "float"),
+        "max_robot_pose_search_dist": ("max_robot_pose_search_dist", "float"), "pose": ("pose_key", "key")},
+        {"robot_frame": "the robot's pose is /map/pose (base_link in map) unless pose is given"}),
+    "RemoveInCollisionGoals": _nav2("RemoveInCollisionGoals", {
+        "input_goals": ("input_key", "key"), "output_goals": ("output_key", "key"),
+        "cost_threshold": ("cost_threshold", "float"), "use_footprint": ("use_footprint", "bool"),
+        "consider_unknown_as_obstacle": ("consider_unknown_as_obstacle", "bool")},
+        {"service_name": "homing reads its one costmap directly (no get_costs service)",
+         "input_waypoint_statuses": "homing keeps no waypoint statuses",
+         "output_waypoint_statuses": "homing keeps no waypoint statuses"}),
     "RemovePassedGoals": _nav2("RemovePassedGoals", {"input_goals": ("input_key", "key"), "output_goals": ("output_key", "key"),
                                                      "radius": ("radius", "float")}),
     "IsPathValid": _nav2("IsPathValid", {"path": ("path_key", "key")},
@@ -191,6 +260,8 @@ RULES: dict[str, Rule] = {
                         "navigate_to_staging_pose": "read by the importer: GoHome first unless false"},
                        note="GoHome to the staging pose, then AutoDock (IR): Nav2's DockRobot in homing's leaves"),
     "IsBatteryCharging": _nav2("BatteryCharging", {}, {"battery_topic": "the battery comes from the adapter"}),
+    "AreErrorCodesPresent": _nav2("FailureIs", {"error_code": ("key", "key"), "error_codes_to_check": ("reasons", "codes")},
+                                  note="Nav2's numeric planner and controller error codes as homing's typed reasons"),
     "WouldAPlannerRecoveryHelp": _nav2("FailureIs", {"error_code": ("key", "key")}, reasons=list(PLANNER_REASONS),
                                        note="Nav2's error codes UNKNOWN, NO_VALID_PATH, TIMEOUT as homing's typed reasons"),
     "WouldAControllerRecoveryHelp": _nav2(
@@ -231,22 +302,18 @@ NO_EQUIVALENT: dict[str, str] = {
     "LatchedFallback": "not in BT.CPP 4's factory (a v3-era branch only): use fallback",
     "ParallelFirst": "not in BT.CPP 4's factory (a v3-era branch only): use parallel with success: 1",
     "ReactiveParallel": "not in BT.CPP 4's factory (a development branch only): use parallel",
-    "AssistedTeleop": "no teleoperation in homing",
-    "ClearCostmapAroundRobot": "homing clears the whole obstacle layer (ClearEntireCostmap)",
-    "ClearCostmapExceptRegion": "homing clears the whole obstacle layer (ClearEntireCostmap)",
-    "NavigateThroughPoses": "no through-poses navigator leaf; use ComputePathThroughPoses and FollowPath",
-    "SmoothPath": "no path smoother server", "WouldASmootherRecoveryHelp": "no path smoother server",
-    "TruncatePathLocal": "not yet: a window of the path around the robot's closest point (no homing leaf)",
-    "TransformAvailable": "no TF in homing", "InitialPoseReceived": "no AMCL initial pose in homing",
-    "ReinitializeGlobalLocalization": "no AMCL in homing",
-    "CancelAssistedTeleop": "no teleoperation in homing",
-    "CancelComputeAndTrackRoute": "halting the tree cancels",
-    "AreErrorCodesPresent": "Nav2's numeric codes: use FailureIs with homing's typed reasons",
-    "ClearCostmapAroundPose": "homing clears the whole obstacle layer (ClearEntireCostmap), not a region",
-    "ComputeRoute": "no route graph in homing (Nav2's route server plans on a graph of waypoints)",
-    "ComputeAndTrackRoute": "no route graph in homing (Nav2's route server)",
-    "WouldARouteRecoveryHelp": "no route graph in homing (Nav2's route server's error codes)",
-    "RemoveInCollisionGoals": "not yet: no leaf checks a goal list against the costmap",
+    "AssistedTeleop": "it drives by an operator's twists on the ROS topic cmd_vel_teleop (Nav2's behavior "
+                      "server), and homing has no operator input",
+    "InitialPoseReceived": "it waits for a pose on ROS's /initialpose topic (RViz's 2D Pose Estimate); homing's "
+                           "SLAM starts at its first pose and takes none",
+    "CancelAssistedTeleop": "it cancels the AssistedTeleop ROS action of Nav2's behavior server, which homing has not",
+    "CancelComputeAndTrackRoute": "it cancels the compute_and_track_route ROS action of Nav2's route server, which "
+                                  "homing has not",
+    "ComputeRoute": "it calls Nav2's route server (the compute_route ROS action, on a GeoJSON graph of waypoints), "
+                    "which homing has not",
+    "ComputeAndTrackRoute": "it calls Nav2's route server (the compute_and_track_route ROS action), which homing has not",
+    "WouldARouteRecoveryHelp": "it reads the error codes of Nav2's route server (a ROS action server), which homing "
+                               "has not",
 }
 
 # py_trees' composites and decorators (for the README's table; homing reads no py_trees code).

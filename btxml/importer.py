@@ -38,11 +38,13 @@ from homing.btxml import catalog
 from homing.btxml.reader import Document, Element, read
 from homing.btxml.yaml_out import mission_text
 from homing.missions.schema import suggest
+from homing.robot import frames
 
 from homing.errors import UserError, UserErrors
 
 BOOLS = {"true": True, "false": False, "1": True, "0": False}
 CALL_ATTRS = ("ID", "name", *catalog.GROOT_ATTRS)
+HOMING_FRAMES = (frames.MAP, frames.ODOM, frames.BASE_LINK, frames.LASER, frames.CAMERA)  # REP-105, all always there
 
 
 @dataclass
@@ -270,8 +272,17 @@ class Importer:
             if value is not _BAD:
                 body[param] = value
                 self._record_keys(spec, param, value)
+        if tag == "RoundRobin" and not BOOLS.get(el.attrs.get("wrap_around", "true").strip().lower(), False):
+            self.error(el, "<RoundRobin wrap_around=\"false\">: homing's round_robin always wraps round to its first "
+                           "child (Nav2's RoundRobin before the port); false is not supported", "wrap_around")  # fmt: skip
         if tag == "IsBatteryLow" and BOOLS.get(el.attrs.get("is_voltage", "false").lower(), False):
             self.error(el, "<IsBatteryLow is_voltage=\"true\">: homing's BatteryBelow compares percentages", "is_voltage")
+        if tag == "TransformAvailable":
+            for attr in ("child", "parent"):
+                frame = el.attrs.get(attr, "").strip().lstrip("/")
+                if frame not in HOMING_FRAMES:
+                    self.error(el, f"<TransformAvailable {attr}=\"{frame}\">: homing's frames are "
+                                   f"{', '.join(HOMING_FRAMES)}", attr)  # fmt: skip
         if rule.homing == "parallel":
             body.update(self.parallel(el))
         if rule.homing == "switch":
@@ -307,7 +318,7 @@ class Importer:
             key = port.text if port is not None else text.strip()
             return attr if key == "=" else key
         if port is not None:
-            if conv in ("ms", "abs", "fraction"):
+            if conv in ("ms", "abs", "fraction", "codes"):
                 self.error(el, f"<{tag}> {attr}='{text}': a port read at run time cannot be converted "
                                f"({'milliseconds to seconds' if conv == 'ms' else conv}); give a value", attr)  # fmt: skip
                 return _BAD
@@ -325,10 +336,33 @@ class Importer:
                         "fraction": number * 100.0 if number <= 1.0 else number}[conv]
             if conv == "list":
                 return [t for t in text.split(";") if t]
+            if conv == "codes":
+                return self.error_codes(el, attr, text, tag)
         except ValueError as err:
             self.error(el, f"<{tag}> {attr}='{text}': {err}", attr)
             return _BAD
         return _typed_text(text)
+
+    def error_codes(self, el: Element, attr: str, text: str, tag: str) -> list[str]:
+        """Nav2's numeric error codes (``a;b`` or ``a,b``) as homing's typed reasons; codes homing never reports are noted."""
+        reasons: list[str] = []
+        never: list[str] = []
+        for token in re.split(r"[;,\s]+", text.strip()):
+            if not token:
+                continue
+            code = int(token)
+            if code in catalog.NAV2_ERROR_CODES:
+                reason = catalog.NAV2_ERROR_CODES[code]
+                if reason not in reasons:
+                    reasons.append(reason)
+            elif code in catalog.NAV2_ERRORS_NEVER_REPORTED:
+                never.append(f"{code} ({catalog.NAV2_ERRORS_NEVER_REPORTED[code]})")
+            else:
+                raise ValueError(f"{code} is none of Nav2's controller (1xx), planner (2xx, 3xx) or smoother (5xx) "
+                                 "error codes")
+        if never:
+            self.note(el, f"<{tag}> {attr}: homing never reports {', '.join(never)}", attr)
+        return reasons
 
     def parallel(self, el: Element) -> dict[str, Any]:
         n = len(el.children)

@@ -306,6 +306,17 @@ class GridSlam:
         self.reference, self._settled = _reference(grid)
         self.scans_fused = max(self.scans_fused, WARMUP_SCANS)
 
+    def forget_pose(self) -> bool:
+        """Count the robot as lost: the next scan is looked for in the whole map. Whether it was (a map to search).
+
+        Does nothing before matching starts (``WARMUP_SCANS``): an empty map has nowhere to look.
+        """
+        if self.matcher is None or self.scans_fused < WARMUP_SCANS:
+            return False
+        self.lost, self.misfits = True, 0
+        self._next_relocalise = -math.inf
+        return True
+
     def set_pose(self, pose: Pose2, odom_pose: Pose2) -> None:
         """The robot is known to stand at ``pose`` in map (docked, or restarted on a saved map): track from there."""
         self.map_to_odom = pose.compose(odom_pose.inverse())

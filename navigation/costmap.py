@@ -9,7 +9,8 @@ are combined into one (H, W) uint8 cost array in the ``map`` frame.
   ``NO_INFORMATION``;
 - **obstacle**: what the latest scans see, marked at the rays' end points and
   cleared by ray tracing from the laser, kept between scans until cleared
-  (by later rays or by :meth:`Costmap.clear`, the "clear costmap" recovery);
+  (by later rays, by :meth:`Costmap.clear`, the "clear costmap" recovery, or
+  in a square round a point by :meth:`Costmap.clear_region`);
 - **keep-out** and **bumper** layers (:mod:`homing.navigation.layers`):
   what the lidar cannot see — zones the mission forbids (the dock) and arcs
   where a bumper fired — lethal, untouched by the scan's clearing;
@@ -327,6 +328,37 @@ class Costmap:
         if self.obstacles.size:
             self.obstacles[:] = False
             self._inflate()
+
+    def clear_region(self, x: float, y: float, size: float, inside: bool = True) -> int:
+        """Clear the obstacle layer in (or outside) a ``size`` [m] square centred on (x, y) [m] ``map``.
+
+        Nav2's ``clear_around_*`` / ``clear_except_*`` costmap services
+        (``nav2_costmap_2d/clear_costmap_service.cpp``): the square's sides are
+        ``size`` long, ``size / 2`` either side of the point, axis-aligned in
+        ``map``; a cell belongs to it when its centre does. ``inside=True``
+        clears the square (ClearCostmapAroundRobot/AroundPose),
+        ``inside=False`` everything but the square (ClearCostmapExceptRegion).
+        Like Nav2's services, only the layers the sensors fill are cleared
+        (obstacle marks and bumper marks); the static map and keep-out zones
+        stay. Returns how many obstacle cells were cleared.
+        """
+        half = max(float(size), 0.0) / 2.0
+        if self.bumps.points.size:
+            p = self.bumps.points
+            within = (np.abs(p[:, 0] - x) <= half) & (np.abs(p[:, 1] - y) <= half)
+            keep = ~within if inside else within
+            self.bumps.points, self.bumps.stamps = p[keep], self.bumps.stamps[keep]
+        if not self.obstacles.size:
+            return 0
+        h, w = self.shape
+        cx = self.origin[0] + (np.arange(w) + 0.5) * self.resolution
+        cy = self.origin[1] + (np.arange(h) + 0.5) * self.resolution
+        square = (np.abs(cy - y) <= half)[:, None] & (np.abs(cx - x) <= half)[None, :]
+        target = self.obstacles & (square if inside else ~square)
+        cleared = int(target.sum())
+        self.obstacles[target] = False
+        self._inflate()
+        return cleared
 
     def _mark(self, pts: np.ndarray) -> None:
         rc = self.world_to_cell(pts)

@@ -224,8 +224,8 @@ def test_mistakes_are_placed_at_line_and_column(tmp_path: Path, xml: str, where:
 
 def test_every_missing_node_is_listed_at_once(tmp_path: Path) -> None:
     errors = errors_of(tmp_path, """<root><BehaviorTree ID="T"><Sequence>
-      <TruncatePathLocal/><AssistedTeleop/><AlwaysSuccess/></Sequence></BehaviorTree></root>""")
-    assert [e.split(": ", 1)[1].split(" ")[0] for e in errors] == ["<TruncatePathLocal>", "<AssistedTeleop>"]
+      <ComputeRoute/><AssistedTeleop/><AlwaysSuccess/></Sequence></BehaviorTree></root>""")
+    assert [e.split(": ", 1)[1].split(" ")[0] for e in errors] == ["<ComputeRoute>", "<AssistedTeleop>"]
 
 
 @pytest.mark.parametrize(("xml", "message"), [
