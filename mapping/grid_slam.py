@@ -141,7 +141,8 @@ class GridSlam:
         self.reference, self._settled = _reference(self.grid)
         self.matcher: ScanMatcher | None = (
             (matcher or CorrelativeMatcher(prior_xy=TRACKING_PRIOR_XY, prior_theta=TRACKING_PRIOR_THETA,
-                                           refine=TRACKING_REFINE, field_max_age=FIELD_MAX_AGE))
+                                           refine=TRACKING_REFINE, field_max_age=FIELD_MAX_AGE,
+                                           whole_field=True))
             if use_matcher
             else None
         )
@@ -294,7 +295,8 @@ class GridSlam:
         if stamp < self._next_relocalise:
             return
         self._next_relocalise = stamp + RELOCALISE_PERIOD
-        found = relocalise(self.reference, points, max_range)
+        whole = self.matcher.whole if isinstance(self.matcher, CorrelativeMatcher) else None
+        found = relocalise(self.reference, points, max_range, whole)
         self.last_relocalisation = found
         if found.pose is not None:
             # Found: track from here as from a known pose; the slip rung belonged to the floor it was lifted from.

@@ -30,6 +30,7 @@ a few degrees), as between consecutive scans.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -113,8 +114,14 @@ class LikelihoodField:
         return self._levels[k]
 
 
-def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: float, sigma: float = SIGMA) -> LikelihoodField:
-    """The likelihood field of ``grid`` on the square crop of half-size ``half`` [m] around ``centre``."""
+def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: float, sigma: float = SIGMA,
+                     whole: GridField | None = None) -> LikelihoodField:
+    """The likelihood field of ``grid`` on the square crop of half-size ``half`` [m] around ``centre``.
+
+    ``whole``: the grid's kept-up-to-date field (:class:`GridField`), cut instead of computing the crop
+    afresh. Its values are those of the whole grid: they equal a fresh crop's wherever the crop's edge is
+    more than the field's reach (10 σ) away, and are truer near the edge (walls just outside count).
+    """
     res = grid.resolution
     lo = grid.world_to_cell(centre[0] - half, centre[1] - half)
     hi = grid.world_to_cell(centre[0] + half, centre[1] + half)
@@ -123,13 +130,113 @@ def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: flo
     r1, c1 = min(int(hi[0]) + 1, h), min(int(hi[1]) + 1, w)
     if r1 <= r0 or c1 <= c0:
         return LikelihoodField(np.zeros((1, 1), np.float32), grid.origin, res)
-    occ = grid.data[r0:r1, c0:c1] == OCCUPIED
-    # distanceTransform measures to the nearest zero pixel: zeros at walls.
-    dist = cv2.distanceTransform((~occ).astype(np.uint8), cv2.DIST_L2, 5) * res
-    values = np.exp(-0.5 * (np.minimum(dist, 10 * sigma) / sigma) ** 2).astype(np.float32)
+    if whole is not None:
+        values = whole.update(grid)[r0:r1, c0:c1].copy()
+    else:
+        values = _field_values(grid.data[r0:r1, c0:c1] == OCCUPIED, res, sigma)
     origin = (float(grid.origin[0] + c0 * res), float(grid.origin[1] + r0 * res))
     known = grid.data[r0:r1, c0:c1] != UNKNOWN
     return LikelihoodField(values, origin, res, known)
+
+
+def _field_values(occ: np.ndarray, res: float, sigma: float) -> np.ndarray:
+    """(H, W) float32 likelihood field of the occupied mask ``occ`` (H, W) bool, cells of ``res`` [m]."""
+    # distanceTransform measures to the nearest zero pixel: zeros at walls.
+    dist = cv2.distanceTransform((~occ).astype(np.uint8), cv2.DIST_L2, 5) * res
+    return np.exp(-0.5 * (np.minimum(dist, 10 * sigma) / sigma) ** 2).astype(np.float32)
+
+
+class GridField:
+    """The likelihood field of a whole growing grid, recomputed after each change only where walls changed.
+
+    A scan changes the walls of a few places; the field (a wall's reach is 10 σ) changes only within that
+    reach of them. The grid is cut into tiles of ``TILE`` cells; a tile whose walls changed is recomputed
+    with its neighbours, on a crop that reaches 10 σ beyond them so that every value written is the one a
+    computation over the whole grid would give, bit for bit (the distance transform's mask-5 distance
+    between two cells depends only on their offset, and the exponential is taken cell by cell). When the
+    grid grows, the new cells start far from any wall and the walls near the old border are recomputed.
+
+    Use it for a grid that is matched against again and again as it changes (a SLAM's map): for a grid
+    matched once, a crop (:func:`likelihood_field` without ``whole``) is cheaper.
+    """
+
+    TILE = 32  # cells per tile side (at least the field's reach: 10 σ / resolution, 20 cells at 10 cm / 5 cm)
+
+    def __init__(self, sigma: float = SIGMA) -> None:
+        self.sigma = sigma
+        self.values = np.zeros((0, 0), np.float32)  # (H, W) float32 over the whole grid
+        self.tiles_recomputed = 0  # (statistics) tiles recomputed since the start
+        self._occ = np.zeros((0, 0), bool)
+        self._origin = (math.nan, math.nan)
+        self._resolution = math.nan
+        self._version = -1
+        self._grid: weakref.ref[OccupancyGrid] | None = None
+
+    def update(self, grid: OccupancyGrid) -> np.ndarray:
+        """The field of ``grid`` as it is now, (H, W) float32 (updated in place: copy what you keep)."""
+        same = self._grid is not None and self._grid() is grid
+        if same and grid.version == self._version:
+            return self.values
+        occ = grid.data == OCCUPIED
+        res = grid.resolution
+        reach = int(math.ceil(10 * self.sigma / res)) + 1  # [cells] how far a wall shapes the field
+        if not same or res != self._resolution or not self._grows_into(grid):
+            self.values = _field_values(occ, res, self.sigma)
+        else:
+            self._pad(grid, reach)
+            self._recompute(occ, self._occ != occ, res, reach)
+        self._occ = occ.copy()
+        self._origin, self._resolution = grid.origin, res
+        self._version, self._grid = grid.version, weakref.ref(grid)
+        return self.values
+
+    def _grows_into(self, grid: OccupancyGrid) -> bool:
+        """Whether ``grid`` holds the extent kept so far, on the same cell boundaries (it grew or stayed)."""
+        res = grid.resolution
+        left = (self._origin[0] - grid.origin[0]) / res
+        below = (self._origin[1] - grid.origin[1]) / res
+        if abs(left - round(left)) > 1e-6 or abs(below - round(below)) > 1e-6 or left < 0 or below < 0:
+            return False
+        h, w = self.values.shape
+        return round(below) + h <= grid.shape[0] and round(left) + w <= grid.shape[1]
+
+    def _pad(self, grid: OccupancyGrid, reach: int) -> None:
+        """Grow the kept field and walls to ``grid``'s extent; walls within ``reach`` of the old border are
+        forgotten, so that they count as changed and the new cells near them are computed."""
+        res = grid.resolution
+        left = int(round((self._origin[0] - grid.origin[0]) / res))
+        below = int(round((self._origin[1] - grid.origin[1]) / res))
+        h, w = self.values.shape
+        if (below, left) == (0, 0) and (h, w) == grid.shape:
+            return
+        far = _field_values(np.zeros((1, 64), bool), res, self.sigma)[0, 0]  # 10 σ or more from any wall
+        pad = ((below, grid.shape[0] - h - below), (left, grid.shape[1] - w - left))
+        self.values = np.pad(self.values, pad, constant_values=np.float32(far))
+        occ = self._occ.copy()
+        band = np.ones((h, w), bool)
+        band[reach:h - reach, reach:w - reach] = False
+        occ[band] = False
+        self._occ = np.pad(occ, pad)
+
+    def _recompute(self, occ: np.ndarray, changed: np.ndarray, res: float, reach: int) -> None:
+        """Recompute the tiles within a tile of a changed wall, each group on a crop ``reach`` wider."""
+        if not changed.any():
+            return
+        t = max(self.TILE, reach)
+        h, w = changed.shape
+        th, tw = -(-h // t), -(-w // t)
+        padded = np.zeros((th * t, tw * t), bool)
+        padded[:h, :w] = changed
+        dirty = ndimage.binary_dilation(padded.reshape(th, t, tw, t).any(axis=(1, 3)), np.ones((3, 3), bool))
+        labels, _ = ndimage.label(dirty, np.ones((3, 3), int))
+        for box in ndimage.find_objects(labels):
+            r0, r1 = box[0].start * t, min(box[0].stop * t, h)
+            c0, c1 = box[1].start * t, min(box[1].stop * t, w)
+            a0, a1 = max(r0 - reach, 0), min(r1 + reach, h)
+            b0, b1 = max(c0 - reach, 0), min(c1 + reach, w)
+            crop = _field_values(occ[a0:a1, b0:b1], res, self.sigma)
+            self.values[r0:r1, c0:c1] = crop[r0 - a0:r1 - a0, c0 - b0:c1 - b0]
+            self.tiles_recomputed += int(np.count_nonzero(dirty[box]))
 
 
 def points_field(points: np.ndarray, resolution: float, sigma: float = SIGMA, margin: float = 1.0,
@@ -184,6 +291,7 @@ class CorrelativeMatcher:
         prior_theta: float = PRIOR_THETA,
         field_max_age: int = 0,
         candidates: int = 1,
+        whole_field: bool = False,
     ) -> None:
         self.window_xy = window_xy
         self.candidates = candidates  # top-level poses refined (more: a wide window's peaks not lost to a coarse tie)
@@ -196,6 +304,9 @@ class CorrelativeMatcher:
         self.refine = refine
         self.field_max_age = field_max_age
         self._cache: tuple[int, int, tuple[float, float], float, LikelihoodField] | None = None
+        # The field of the whole grid kept up to date (GridField), cut for each match: for a grid matched again
+        # and again as it grows (a SLAM's map), where computing each match's crop afresh is most of the cost.
+        self.whole: GridField | None = GridField(sigma) if whole_field else None
 
     def match(self, grid: OccupancyGrid, points: np.ndarray, prior: Pose2, max_range: float = 5.0) -> MatchResult:
         """Best pose of the scan ``points`` (M, 2) [m, base_link] in ``grid`` near ``prior`` [map].
@@ -247,7 +358,7 @@ class CorrelativeMatcher:
                 and abs(prior.x - c[2][0]) + half <= c[3] and abs(prior.y - c[2][1]) + half <= c[3]):
             return c[4]
         margin = FIELD_MARGIN if self.field_max_age > 0 else 0.0
-        field = likelihood_field(grid, (prior.x, prior.y), half + margin, self.sigma)
+        field = likelihood_field(grid, (prior.x, prior.y), half + margin, self.sigma, self.whole)
         if self.field_max_age > 0:
             self._cache = (id(grid), grid.version, (prior.x, prior.y), half + margin, field)
         return field
