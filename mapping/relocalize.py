@@ -111,7 +111,7 @@ def _coarse(grid: OccupancyGrid, whole: GridField | None) -> _Coarse:
     rows, cols = _candidate_cells(grid)
     h, w = grid.shape
     centre = (grid.origin[0] + 0.5 * w * grid.resolution, grid.origin[1] + 0.5 * h * grid.resolution)
-    field = likelihood_field(grid, centre, 0.5 * max(h, w) * grid.resolution + 1.0, whole=whole)
+    field = likelihood_field(grid, centre, 0.5 * max(h, w) * grid.resolution + 1.0, whole=whole, copy=False)
     f = 2**COARSE_LEVEL
     vals = field.values
     H, W = -(-vals.shape[0] // f), -(-vals.shape[1] // f)

@@ -115,12 +115,13 @@ class LikelihoodField:
 
 
 def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: float, sigma: float = SIGMA,
-                     whole: GridField | None = None) -> LikelihoodField:
+                     whole: GridField | None = None, copy: bool = True) -> LikelihoodField:
     """The likelihood field of ``grid`` on the square crop of half-size ``half`` [m] around ``centre``.
 
     ``whole``: the grid's kept-up-to-date field (:class:`GridField`), cut instead of computing the crop
     afresh. Its values are those of the whole grid: they equal a fresh crop's wherever the crop's edge is
     more than the field's reach (10 σ) away, and are truer near the edge (walls just outside count).
+    ``copy=False`` gives views of it instead, valid until the grid next changes.
     """
     res = grid.resolution
     lo = grid.world_to_cell(centre[0] - half, centre[1] - half)
@@ -130,13 +131,14 @@ def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: flo
     r1, c1 = min(int(hi[0]) + 1, h), min(int(hi[1]) + 1, w)
     if r1 <= r0 or c1 <= c0:
         return LikelihoodField(np.zeros((1, 1), np.float32), grid.origin, res)
-    if whole is not None:
-        values = whole.update(grid)[r0:r1, c0:c1].copy()
-    else:
-        values = _field_values(grid.data[r0:r1, c0:c1] == OCCUPIED, res, sigma)
     origin = (float(grid.origin[0] + c0 * res), float(grid.origin[1] + r0 * res))
-    known = grid.data[r0:r1, c0:c1] != UNKNOWN
-    return LikelihoodField(values, origin, res, known)
+    if whole is not None:
+        values, known = whole.update(grid)[r0:r1, c0:c1], whole.known[r0:r1, c0:c1]
+        if copy:
+            values, known = values.copy(), known.copy()
+        return LikelihoodField(values, origin, res, known)
+    values = _field_values(grid.data[r0:r1, c0:c1] == OCCUPIED, res, sigma)
+    return LikelihoodField(values, origin, res, grid.data[r0:r1, c0:c1] != UNKNOWN)
 
 
 def _field_values(occ: np.ndarray, res: float, sigma: float) -> np.ndarray:
@@ -165,6 +167,7 @@ class GridField:
     def __init__(self, sigma: float = SIGMA) -> None:
         self.sigma = sigma
         self.values = np.zeros((0, 0), np.float32)  # (H, W) float32 over the whole grid
+        self.known = np.zeros((0, 0), bool)  # (H, W) the grid has observed the cell
         self.tiles_recomputed = 0  # (statistics) tiles recomputed since the start
         self._occ = np.zeros((0, 0), bool)
         self._origin = (math.nan, math.nan)
@@ -177,15 +180,16 @@ class GridField:
         same = self._grid is not None and self._grid() is grid
         if same and grid.version == self._version:
             return self.values
-        occ = grid.data == OCCUPIED
         res = grid.resolution
         reach = int(math.ceil(10 * self.sigma / res)) + 1  # [cells] how far a wall shapes the field
         if not same or res != self._resolution or not self._grows_into(grid):
-            self.values = _field_values(occ, res, self.sigma)
+            self._occ = grid.data == OCCUPIED
+            self.values = _field_values(self._occ, res, self.sigma)
+            self.known = grid.data != UNKNOWN
         else:
-            self._pad(grid, reach)
-            self._recompute(occ, self._occ != occ, res, reach)
-        self._occ = occ.copy()
+            grew = self._pad(grid, reach)
+            region = None if grew else grid.changed_since(self._version)
+            self._recompute(grid, res, reach, region if region is not None else (0, grid.shape[0], 0, grid.shape[1]))
         self._origin, self._resolution = grid.origin, res
         self._version, self._grid = grid.version, weakref.ref(grid)
         return self.values
@@ -200,41 +204,56 @@ class GridField:
         h, w = self.values.shape
         return round(below) + h <= grid.shape[0] and round(left) + w <= grid.shape[1]
 
-    def _pad(self, grid: OccupancyGrid, reach: int) -> None:
+    def _pad(self, grid: OccupancyGrid, reach: int) -> bool:
         """Grow the kept field and walls to ``grid``'s extent; walls within ``reach`` of the old border are
-        forgotten, so that they count as changed and the new cells near them are computed."""
+        forgotten, so that they count as changed and the new cells near them are computed. Whether it grew."""
         res = grid.resolution
         left = int(round((self._origin[0] - grid.origin[0]) / res))
         below = int(round((self._origin[1] - grid.origin[1]) / res))
         h, w = self.values.shape
         if (below, left) == (0, 0) and (h, w) == grid.shape:
-            return
+            return False
         far = _field_values(np.zeros((1, 64), bool), res, self.sigma)[0, 0]  # 10 σ or more from any wall
         pad = ((below, grid.shape[0] - h - below), (left, grid.shape[1] - w - left))
         self.values = np.pad(self.values, pad, constant_values=np.float32(far))
+        self.known = np.pad(self.known, pad)
         occ = self._occ.copy()
         band = np.ones((h, w), bool)
         band[reach:h - reach, reach:w - reach] = False
         occ[band] = False
         self._occ = np.pad(occ, pad)
+        return True
 
-    def _recompute(self, occ: np.ndarray, changed: np.ndarray, res: float, reach: int) -> None:
-        """Recompute the tiles within a tile of a changed wall, each group on a crop ``reach`` wider."""
+    def _recompute(self, grid: OccupancyGrid, res: float, reach: int, region: tuple[int, int, int, int]) -> None:
+        """Take the walls of ``grid`` in ``region`` (row0, row1, col0, col1; none changed outside it) and recompute
+        the tiles within a tile of a changed wall, each group of them on a crop ``reach`` wider."""
+        t = max(self.TILE, reach)
+        h, w = grid.shape
+        # The region widened to whole tiles, and a tile more each side for the changes' reach.
+        t0, t1, u0, u1 = region[0] // t, -(-region[1] // t), region[2] // t, -(-region[3] // t)
+        if t1 <= t0 or u1 <= u0:
+            return
+        r0, r1, c0, c1 = t0 * t, min(t1 * t, h), u0 * t, min(u1 * t, w)
+        data = grid.data[r0:r1, c0:c1]
+        self.known[r0:r1, c0:c1] = data != UNKNOWN
+        occ = data == OCCUPIED
+        changed = np.zeros(((t1 - t0) * t, (u1 - u0) * t), bool)
+        changed[:r1 - r0, :c1 - c0] = self._occ[r0:r1, c0:c1] != occ
         if not changed.any():
             return
-        t = max(self.TILE, reach)
-        h, w = changed.shape
-        th, tw = -(-h // t), -(-w // t)
-        padded = np.zeros((th * t, tw * t), bool)
-        padded[:h, :w] = changed
-        dirty = ndimage.binary_dilation(padded.reshape(th, t, tw, t).any(axis=(1, 3)), np.ones((3, 3), bool))
+        self._occ[r0:r1, c0:c1] = occ
+        tiles = np.zeros((t1 - t0 + 2, u1 - u0 + 2), bool)
+        tiles[1:-1, 1:-1] = changed.reshape(t1 - t0, t, u1 - u0, t).any(axis=(1, 3))
+        dirty = ndimage.binary_dilation(tiles, np.ones((3, 3), bool))
         labels, _ = ndimage.label(dirty, np.ones((3, 3), int))
         for box in ndimage.find_objects(labels):
-            r0, r1 = box[0].start * t, min(box[0].stop * t, h)
-            c0, c1 = box[1].start * t, min(box[1].stop * t, w)
+            r0, r1 = max((t0 - 1 + box[0].start) * t, 0), min((t0 - 1 + box[0].stop) * t, h)
+            c0, c1 = max((u0 - 1 + box[1].start) * t, 0), min((u0 - 1 + box[1].stop) * t, w)
+            if r1 <= r0 or c1 <= c0:
+                continue
             a0, a1 = max(r0 - reach, 0), min(r1 + reach, h)
             b0, b1 = max(c0 - reach, 0), min(c1 + reach, w)
-            crop = _field_values(occ[a0:a1, b0:b1], res, self.sigma)
+            crop = _field_values(self._occ[a0:a1, b0:b1], res, self.sigma)
             self.values[r0:r1, c0:c1] = crop[r0 - a0:r1 - a0, c0 - b0:c1 - b0]
             self.tiles_recomputed += int(np.count_nonzero(dirty[box]))
 
@@ -358,7 +377,8 @@ class CorrelativeMatcher:
                 and abs(prior.x - c[2][0]) + half <= c[3] and abs(prior.y - c[2][1]) + half <= c[3]):
             return c[4]
         margin = FIELD_MARGIN if self.field_max_age > 0 else 0.0
-        field = likelihood_field(grid, (prior.x, prior.y), half + margin, self.sigma, self.whole)
+        field = likelihood_field(grid, (prior.x, prior.y), half + margin, self.sigma, self.whole,
+                                 copy=self.field_max_age > 0)
         if self.field_max_age > 0:
             self._cache = (id(grid), grid.version, (prior.x, prior.y), half + margin, field)
         return field

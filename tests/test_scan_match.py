@@ -214,6 +214,7 @@ def test_the_kept_field_of_a_growing_grid_is_the_whole_grid_field_bit_for_bit() 
         fresh = likelihood_field(grid, (0.0, 0.0), 1e3).values
         assert values.shape == grid.shape
         assert np.array_equal(values, fresh)
+        assert np.array_equal(kept.known, grid.data != -1)
         sizes.add(grid.shape)
     assert len(sizes) > 2  # it grew
     assert kept.tiles_recomputed > 0  # the tile by tile path ran, not only whole recomputations
