@@ -51,7 +51,7 @@ MIN_KNOWN = 0.6  # share of the scan that must land on observed cells
 AMBIGUITY = 0.90  # the runner-up elsewhere must fit worse than this share of the best
 DISTINCT_XY = 0.8  # [m] poses farther apart than this…
 DISTINCT_THETA = math.radians(25.0)  # [rad] …or turned more than this are different answers
-CHUNK = 256  # candidates scored at a time (bounds the (chunk, headings × points) gather's memory)
+CHUNK = 16  # candidates scored at a time: the (chunk, headings × points) gather stays in cache (256: 15 % slower)
 
 
 @dataclass(frozen=True)
