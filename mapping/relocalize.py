@@ -132,7 +132,9 @@ def relocalise(grid: OccupancyGrid, points: np.ndarray, max_range: float = 5.0,
     """
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     pts = pts[np.hypot(pts[:, 0], pts[:, 1]) <= max_range]
-    if len(pts) < 30 or not (grid.data != UNKNOWN).any():
+    kept = _COARSE.get(grid)
+    fresh = kept is not None and kept.version == grid.version  # then the map was found not empty
+    if len(pts) < 30 or not (fresh or (grid.data != UNKNOWN).any()):
         return Relocalisation(None, 0.0, 0.0, "too few points or an empty map")
     coarse = _coarse(grid, whole)
     if len(coarse.rows) == 0:
@@ -144,7 +146,7 @@ def relocalise(grid: OccupancyGrid, points: np.ndarray, max_range: float = 5.0,
     sub = pts[:: max(1, len(pts) // COARSE_POINTS)]
     thetas = np.arange(0.0, 2 * math.pi, HEADING_STEP)
     scores = coarse_scores(coarse.pooled, coarse.rows, coarse.cols, size, sub, thetas)
-    order = np.argsort(scores, axis=None)[::-1][: REFINE * 4]
+    order = best_first(scores, REFINE * 4)
     # 3: refine the best few, at most one per position (the pooled bound favours many headings of one spot).
     matcher = CorrelativeMatcher(window_xy=size, window_theta=HEADING_STEP, levels=COARSE_LEVEL,
                                  prior_xy=1e3, prior_theta=1e3, refine=True, min_score=0.0)
@@ -200,6 +202,23 @@ def coarse_scores(pooled: np.ndarray, rows: np.ndarray, cols: np.ndarray, size: 
         idx = base[a:a + CHUNK, None] + steps[None, :]
         scores[a:a + CHUNK] = np.take(flat, idx).reshape(-1, n_t, n_m).mean(axis=2)
     return scores
+
+
+def best_first(scores: np.ndarray, keep: int) -> np.ndarray:
+    """Flat indices of the ``keep`` largest of ``scores``, largest first: ``np.argsort(scores, axis=None)[::-1][:keep]``.
+
+    Sorting every (candidate, heading) costs more than scoring a few of them; the ``keep`` largest are found by
+    partition and only they are sorted. Where ties make the order among them (or the last one taken) depend on
+    the sort's own choices, the whole array is sorted as before, so the answer is argsort's in every case.
+    """
+    flat = scores.ravel()
+    if keep >= flat.size:
+        return np.argsort(flat)[::-1][:keep]
+    kth = np.partition(flat, flat.size - keep)[flat.size - keep]
+    top = np.flatnonzero(flat >= kth)
+    if len(top) == keep and len(np.unique(flat[top])) == keep:
+        return top[np.argsort(flat[top])[::-1]]
+    return np.argsort(flat)[::-1][:keep]
 
 
 def _distinct(a: Pose2, b: Pose2) -> bool:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
-from homing.mapping.relocalize import CHUNK, coarse_scores, relocalise
+from homing.mapping.relocalize import CHUNK, best_first, coarse_scores, relocalise
 from homing.robot import Odometry, Pose2, Twist2
 from homing.sim import SimRobot, load_world
 
@@ -122,3 +122,13 @@ def test_coarse_scores_are_the_pooled_field_under_each_turned_scan_at_each_candi
             inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
             expect = np.where(inside, pooled[np.clip(row, 0, h - 1), np.clip(col, 0, w - 1)], 0.0).mean()
             assert scores[n, t] == pytest.approx(expect, abs=1e-6)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_best_first_is_argsort_largest_first_with_or_without_ties(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    distinct = rng.random((300, 72)).astype(np.float32)
+    tied = np.round(distinct * 20) / 20  # many equal scores, at the cut too
+    for scores in (distinct, tied):
+        expect = np.argsort(scores, axis=None)[::-1][:48]
+        assert np.array_equal(best_first(scores, 48), expect)
