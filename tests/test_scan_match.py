@@ -237,3 +237,16 @@ def test_a_crop_of_the_kept_field_is_the_fresh_crop_away_from_its_edge() -> None
         inner = int(np.ceil(1.0 / 0.05)) + 1
         assert np.array_equal(fresh.values[inner:-inner, inner:-inner], cut.values[inner:-inner, inner:-inner])
         assert (cut.values >= fresh.values).all()  # a wall outside the crop only ever raises the field
+
+
+@pytest.mark.parametrize("shape", [(7, 9), (8, 9), (7, 8), (8, 8), (1, 1), (1, 4), (3, 1)])
+def test_pooling_is_the_max_of_each_two_by_two_block_padded_with_zeros(shape: tuple[int, int]) -> None:
+    from homing.mapping.scan_match import _pool
+
+    rng = np.random.default_rng(sum(shape))
+    for values in (rng.random(shape).astype(np.float32), -rng.random(shape).astype(np.float32)):
+        h, w = shape
+        padded = np.zeros((h + h % 2, w + w % 2), np.float32)
+        padded[:h, :w] = values
+        expect = padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).max(axis=(1, 3))
+        assert np.array_equal(_pool(values), expect)
