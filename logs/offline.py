@@ -113,7 +113,8 @@ def run_method(log: RunLog, method: str, max_range: float = MAX_RANGE, resolutio
 def _grid(data: list[tuple[float, Odometry, Scan | None]], max_range: float,
           resolution: float) -> tuple[list[float], list[Pose2], OccupancyGrid]:
     matcher = CorrelativeMatcher(window_xy=LOG_GRID_WINDOW[0], window_theta=LOG_GRID_WINDOW[1],
-                                 prior_xy=LOG_GRID_PRIOR[0], prior_theta=LOG_GRID_PRIOR[1], refine=True)
+                                 prior_xy=LOG_GRID_PRIOR[0], prior_theta=LOG_GRID_PRIOR[1], refine=True,
+                                 whole_field=True)
     slam = GridSlam(resolution, matcher=matcher, max_correction=LOG_GRID_MAX_CORRECTION, match_range=max_range - 1.0)
     stamps, poses = [], []
     for _stamp, odom, scan in data:

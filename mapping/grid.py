@@ -36,6 +36,8 @@ T_FREE = -0.20  # log-odds below which a cell reads FREE
 GROW_CHUNK = 4.0  # [m] margin added on each side that needs to grow
 NO_RETURN_NEIGHBOURS = 2  # rays each side whose returns bound how far a no-return ray clears
 MIN_RETURN_SHARE = 0.5  # a scan with fewer returns than this is a dropout: its no-return rays clear nothing
+CHANGES_KEPT = 16  # changes whose extent is remembered (OccupancyGrid.changed_since)
+NOTHING = (math.inf, math.inf, -math.inf, -math.inf)  # the extent of a change that changed no cell's value
 
 
 class OccupancyGrid:
@@ -63,6 +65,10 @@ class OccupancyGrid:
         self.logodds = np.zeros(shape, dtype=np.float32)
         self.version = 0  # bumped on every change, so readers can cache derived arrays
         self._data: np.ndarray | None = None
+        self._data_key = (0, self.origin)  # (version, origin) _data was computed at
+        self._old: tuple[np.ndarray, int, tuple[float, float]] | None = None  # the last _data, its version, origin
+        # (version, extent (xmin, ymin, xmax, ymax) [m, map] of the cells the change may have changed, or None: any)
+        self._changes: list[tuple[int, tuple[float, float, float, float] | None]] = []
 
     # ------------------------------------------------------------------ views
     @property
@@ -71,13 +77,53 @@ class OccupancyGrid:
 
     @property
     def data(self) -> np.ndarray:
-        """(H, W) int8 map_server view: FREE 0, OCCUPIED 100, UNKNOWN −1 (cached until the next update)."""
+        """(H, W) int8 map_server view: FREE 0, OCCUPIED 100, UNKNOWN −1 (cached until the next update).
+
+        A new array after each update (an array read before is never changed), recomputed only where the
+        updates since the last one were (:meth:`changed_since`).
+        """
         if self._data is None:
-            out = np.full(self.logodds.shape, UNKNOWN, dtype=np.int8)
-            out[self.logodds > T_OCC] = OCCUPIED
-            out[self.logodds < T_FREE] = FREE
-            self._data = out
+            old, region = self._old, None
+            if old is not None and old[0].shape == self.logodds.shape and old[2] == self.origin:
+                region = self.changed_since(old[1])
+            if old is None or region is None:
+                out = _classify(self.logodds)
+            else:
+                out = old[0].copy()
+                r0, r1, c0, c1 = region
+                out[r0:r1, c0:c1] = _classify(self.logodds[r0:r1, c0:c1])
+            self._data, self._data_key, self._old = out, (self.version, self.origin), None
         return self._data
+
+    def changed_extent(self, version: int) -> tuple[float, float, float, float] | None:
+        """(xmin, ymin, xmax, ymax) [m, map] holding every cell changed since ``version`` (None: not known;
+        xmin > xmax: none)."""
+        if version >= self.version:
+            return NOTHING
+        since = [box for v, box in self._changes if v > version]
+        boxes = [box for box in since if box is not None]
+        if len(since) != self.version - version or len(boxes) != len(since):
+            return None
+        return (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes), max(b[3] for b in boxes))
+
+    def changed_since(self, version: int) -> tuple[int, int, int, int] | None:
+        """Cells (row0, row1, col0, col1), as slices' bounds, holding every cell changed since ``version``.
+
+        None when that is not known (a change from outside, or too long ago): assume any cell changed. The
+        bounds are in the grid's present cells: a grid that grew since has a new origin and shape.
+        """
+        extent = self.changed_extent(version)
+        if extent is None:
+            return None
+        xmin, ymin, xmax, ymax = extent
+        if xmin > xmax or ymin > ymax:
+            return (0, 0, 0, 0)
+        h, w = self.shape
+        r0, c0 = self.world_to_cell(xmin, ymin)
+        r1, c1 = self.world_to_cell(xmax, ymax)
+        # A cell more each side: a point on a cell's boundary may have been rounded into either.
+        return (min(max(int(r0) - 1, 0), h), min(max(int(r1) + 2, 0), h),
+                min(max(int(c0) - 1, 0), w), min(max(int(c1) + 2, 0), w))
 
     def probability(self) -> np.ndarray:
         """(H, W) float32 occupancy probability (0.5 where never observed)."""
@@ -144,7 +190,7 @@ class OccupancyGrid:
         pad_l, pad_b, pad_r, pad_t = (p + chunk if p else 0 for p in (pad_l, pad_b, pad_r, pad_t))
         self.logodds = np.pad(self.logodds, ((pad_b, pad_t), (pad_l, pad_r)))
         self.origin = (ox - pad_l * res, oy - pad_b * res)
-        self._touch()
+        self._touch(NOTHING)  # new cells, all unknown: no cell's value changed
 
     # ------------------------------------------------------------ update
     def integrate(self, scan: Scan, pose: Pose2) -> None:
@@ -202,20 +248,39 @@ class OccupancyGrid:
         flat[free_idx] += L_FREE
         flat[hit_idx] += L_OCC
         np.clip(flat, L_MIN, L_MAX, out=flat)
-        self._touch()
+        if len(lengths):
+            self._touch((min(ox, float(ends_x.min())), min(oy, float(ends_y.min())),
+                         max(ox, float(ends_x.max())), max(oy, float(ends_y.max()))))
+        else:
+            self._touch(NOTHING)
 
     def clear(self) -> None:
         """Forget everything (all cells unknown)."""
         self.logodds[:] = 0.0
         self._touch()
 
-    def clear_cache(self) -> None:
-        """The log-odds were changed from outside (read back from a file): drop what was derived from them."""
-        self._touch()
+    def clear_cache(self, extent: tuple[float, float, float, float] | None = None) -> None:
+        """The log-odds were changed from outside (read back from a file): drop what was derived from them.
 
-    def _touch(self) -> None:
+        ``extent`` (xmin, ymin, xmax, ymax) [m, map]: the changed cells all lie in it (None: anywhere).
+        """
+        self._touch(extent)
+
+    def _touch(self, extent: tuple[float, float, float, float] | None = None) -> None:
+        if self._data is not None:
+            self._old = (self._data, self._data_key[0], self._data_key[1])
         self._data = None
         self.version += 1
+        self._changes.append((self.version, extent))
+        del self._changes[:-CHANGES_KEPT]
+
+
+def _classify(logodds: np.ndarray) -> np.ndarray:
+    """The map_server view (int8 FREE / OCCUPIED / UNKNOWN) of log-odds (H, W)."""
+    out = np.full(logodds.shape, UNKNOWN, dtype=np.int8)
+    out[logodds > T_OCC] = OCCUPIED
+    out[logodds < T_FREE] = FREE
+    return out
 
 
 def _clear_lengths(ranges: np.ndarray, hit: np.ndarray, range_max: float, wraps: bool = True) -> np.ndarray:

@@ -34,6 +34,7 @@ import math
 
 import numpy as np
 from homing.mapping.grid import L_MAX, L_MIN, OccupancyGrid
+from homing.mapping.grid import NOTHING as _NOTHING
 from homing.mapping.relocalize import Relocalisation, relocalise
 from homing.mapping.scan_match import CorrelativeMatcher, MatchResult, ScanMatcher
 from homing.robot import Odometry, Pose2, Scan
@@ -139,9 +140,14 @@ class GridSlam:
         self.grid = grid if grid is not None else OccupancyGrid(resolution)
         # What scans are matched against: the live grid, but a cell it has been sure of (SETTLE_AT) stays as it was.
         self.reference, self._settled = _reference(self.grid)
+        # [m, map] (xmin, ymin, xmax, ymax) where the live grid changed outside the windows settled since (None:
+        # not known), and its version at the last settling.
+        self._pending: tuple[float, float, float, float] | None = _NOTHING
+        self._synced = self.grid.version
         self.matcher: ScanMatcher | None = (
             (matcher or CorrelativeMatcher(prior_xy=TRACKING_PRIOR_XY, prior_theta=TRACKING_PRIOR_THETA,
-                                           refine=TRACKING_REFINE, field_max_age=FIELD_MAX_AGE))
+                                           refine=TRACKING_REFINE, field_max_age=FIELD_MAX_AGE,
+                                           whole_field=True))
             if use_matcher
             else None
         )
@@ -278,23 +284,46 @@ class GridSlam:
             ref.logodds = np.pad(ref.logodds, pad)
             self._settled = np.pad(self._settled, pad)
             ref.origin = live.origin
+        res, (ox, oy) = live.resolution, live.origin
         r, c = live.world_to_cell(pose.x, pose.y)
-        n = int(math.ceil(reach / live.resolution)) + 2
-        win = (slice(max(int(r) - n, 0), int(r) + n + 1), slice(max(int(c) - n, 0), int(c) + n + 1))
-        unsettled = ~self._settled[win]
-        ref.logodds[win][unsettled] = live.logodds[win][unsettled]  # until a cell settles it follows the live grid
-        sure = unsettled & (np.abs(live.logodds[win]) >= SETTLE_AT)
-        if sure.any():
-            ref.logodds[win][sure] = np.where(live.logodds[win][sure] > 0, L_MAX, L_MIN)
-            self._settled[win] |= sure
-        ref.clear_cache()
+        n = int(math.ceil(reach / res)) + 2
+        win = [max(int(r) - n, 0), min(int(r) + n + 1, live.shape[0]), max(int(c) - n, 0),
+               min(int(c) + n + 1, live.shape[1])]
+        # Only the cells the live grid changed since they were last taken can differ from it: those it changed
+        # since the last call (a scan's rays may reach past the window: what is left out waits for a later one).
+        changed = live.changed_extent(self._synced)
+        self._synced = live.version
+        box = None if changed is None or self._pending is None else _union(self._pending, changed)
+        if box is None:  # changed from outside, nobody said where: the whole window, from now on
+            r0, r1, c0, c1 = win
+            self._pending = None
+        elif box[0] > box[2] or box[1] > box[3]:
+            r0 = r1 = c0 = c1 = 0
+        else:
+            r0 = max(win[0], int(math.floor((box[1] - oy) / res)) - 1)
+            r1 = min(win[1], int(math.floor((box[3] - oy) / res)) + 2)
+            c0 = max(win[2], int(math.floor((box[0] - ox) / res)) - 1)
+            c1 = min(win[3], int(math.floor((box[2] - ox) / res)) + 2)
+            window = (ox + win[2] * res, oy + win[0] * res, ox + win[3] * res, oy + win[1] * res)
+            inside = window[0] <= box[0] and window[1] <= box[1] and box[2] <= window[2] and box[3] <= window[3]
+            self._pending = _NOTHING if inside else box
+        if r1 <= r0 or c1 <= c0:
+            ref.clear_cache(_NOTHING)
+            return
+        live_w, ref_w, settled_w = live.logodds[r0:r1, c0:c1], ref.logodds[r0:r1, c0:c1], self._settled[r0:r1, c0:c1]
+        # Until a cell settles it follows the live grid; once sure, it takes the clamp and keeps it.
+        sure = np.abs(live_w) >= SETTLE_AT
+        ref_w[...] = np.where(settled_w, ref_w, np.where(sure, np.where(live_w > 0, L_MAX, L_MIN), live_w))
+        settled_w |= sure
+        ref.clear_cache((ox + c0 * res, oy + r0 * res, ox + c1 * res, oy + r1 * res))
 
     def _relocalise(self, stamp: float, points: np.ndarray, odom_pose: Pose2, max_range: float) -> None:
         """While lost, look for the scan in the whole map every RELOCALISE_PERIOD; fuse nothing until found."""
         if stamp < self._next_relocalise:
             return
         self._next_relocalise = stamp + RELOCALISE_PERIOD
-        found = relocalise(self.reference, points, max_range)
+        whole = self.matcher.whole if isinstance(self.matcher, CorrelativeMatcher) else None
+        found = relocalise(self.reference, points, max_range, whole)
         self.last_relocalisation = found
         if found.pose is not None:
             # Found: track from here as from a known pose; the slip rung belonged to the floor it was lifted from.
@@ -304,6 +333,7 @@ class GridSlam:
         """Carry on with ``grid`` (a saved map): scans are matched against it from the first one."""
         self.grid = grid
         self.reference, self._settled = _reference(grid)
+        self._pending, self._synced = _NOTHING, grid.version
         self.scans_fused = max(self.scans_fused, WARMUP_SCANS)
 
     def forget_pose(self) -> bool:
@@ -337,3 +367,8 @@ def _reference(grid: OccupancyGrid) -> tuple[OccupancyGrid, np.ndarray]:
     ref.logodds[settled] = np.where(grid.logodds[settled] > 0, L_MAX, L_MIN)
     ref.clear_cache()
     return ref, settled
+
+
+def _union(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+    """The extent (xmin, ymin, xmax, ymax) holding both extents."""
+    return (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))

@@ -30,6 +30,7 @@ a few degrees), as between consecutive scans.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -113,8 +114,15 @@ class LikelihoodField:
         return self._levels[k]
 
 
-def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: float, sigma: float = SIGMA) -> LikelihoodField:
-    """The likelihood field of ``grid`` on the square crop of half-size ``half`` [m] around ``centre``."""
+def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: float, sigma: float = SIGMA,
+                     whole: GridField | None = None, copy: bool = True) -> LikelihoodField:
+    """The likelihood field of ``grid`` on the square crop of half-size ``half`` [m] around ``centre``.
+
+    ``whole``: the grid's kept-up-to-date field (:class:`GridField`), cut instead of computing the crop
+    afresh. Its values are those of the whole grid: they equal a fresh crop's wherever the crop's edge is
+    more than the field's reach (10 σ) away, and are truer near the edge (walls just outside count).
+    ``copy=False`` gives views of it instead, valid until the grid next changes.
+    """
     res = grid.resolution
     lo = grid.world_to_cell(centre[0] - half, centre[1] - half)
     hi = grid.world_to_cell(centre[0] + half, centre[1] + half)
@@ -123,13 +131,131 @@ def likelihood_field(grid: OccupancyGrid, centre: tuple[float, float], half: flo
     r1, c1 = min(int(hi[0]) + 1, h), min(int(hi[1]) + 1, w)
     if r1 <= r0 or c1 <= c0:
         return LikelihoodField(np.zeros((1, 1), np.float32), grid.origin, res)
-    occ = grid.data[r0:r1, c0:c1] == OCCUPIED
+    origin = (float(grid.origin[0] + c0 * res), float(grid.origin[1] + r0 * res))
+    if whole is not None:
+        values, known = whole.update(grid)[r0:r1, c0:c1], whole.known[r0:r1, c0:c1]
+        if copy:
+            values, known = values.copy(), known.copy()
+        return LikelihoodField(values, origin, res, known)
+    values = _field_values(grid.data[r0:r1, c0:c1] == OCCUPIED, res, sigma)
+    return LikelihoodField(values, origin, res, grid.data[r0:r1, c0:c1] != UNKNOWN)
+
+
+def _field_values(occ: np.ndarray, res: float, sigma: float) -> np.ndarray:
+    """(H, W) float32 likelihood field of the occupied mask ``occ`` (H, W) bool, cells of ``res`` [m]."""
     # distanceTransform measures to the nearest zero pixel: zeros at walls.
     dist = cv2.distanceTransform((~occ).astype(np.uint8), cv2.DIST_L2, 5) * res
-    values = np.exp(-0.5 * (np.minimum(dist, 10 * sigma) / sigma) ** 2).astype(np.float32)
-    origin = (float(grid.origin[0] + c0 * res), float(grid.origin[1] + r0 * res))
-    known = grid.data[r0:r1, c0:c1] != UNKNOWN
-    return LikelihoodField(values, origin, res, known)
+    return np.exp(-0.5 * (np.minimum(dist, 10 * sigma) / sigma) ** 2).astype(np.float32)
+
+
+class GridField:
+    """The likelihood field of a whole growing grid, recomputed after each change only where walls changed.
+
+    A scan changes the walls of a few places; the field (a wall's reach is 10 σ) changes only within that
+    reach of them. The grid is cut into tiles of ``TILE`` cells; a tile whose walls changed is recomputed
+    with its neighbours, on a crop that reaches 10 σ beyond them so that every value written is the one a
+    computation over the whole grid would give, bit for bit (the distance transform's mask-5 distance
+    between two cells depends only on their offset, and the exponential is taken cell by cell). When the
+    grid grows, the new cells start far from any wall and the walls near the old border are recomputed.
+
+    Use it for a grid that is matched against again and again as it changes (a SLAM's map): for a grid
+    matched once, a crop (:func:`likelihood_field` without ``whole``) is cheaper.
+    """
+
+    TILE = 32  # cells per tile side (at least the field's reach: 10 σ / resolution, 20 cells at 10 cm / 5 cm)
+
+    def __init__(self, sigma: float = SIGMA) -> None:
+        self.sigma = sigma
+        self.values = np.zeros((0, 0), np.float32)  # (H, W) float32 over the whole grid
+        self.known = np.zeros((0, 0), bool)  # (H, W) the grid has observed the cell
+        self.tiles_recomputed = 0  # (statistics) tiles recomputed since the start
+        self._occ = np.zeros((0, 0), bool)
+        self._origin = (math.nan, math.nan)
+        self._resolution = math.nan
+        self._version = -1
+        self._grid: weakref.ref[OccupancyGrid] | None = None
+
+    def update(self, grid: OccupancyGrid) -> np.ndarray:
+        """The field of ``grid`` as it is now, (H, W) float32 (updated in place: copy what you keep)."""
+        same = self._grid is not None and self._grid() is grid
+        if same and grid.version == self._version:
+            return self.values
+        res = grid.resolution
+        reach = int(math.ceil(10 * self.sigma / res)) + 1  # [cells] how far a wall shapes the field
+        if not same or res != self._resolution or not self._grows_into(grid):
+            self._occ = grid.data == OCCUPIED
+            self.values = _field_values(self._occ, res, self.sigma)
+            self.known = grid.data != UNKNOWN
+        else:
+            grew = self._pad(grid, reach)
+            region = None if grew else grid.changed_since(self._version)
+            self._recompute(grid, res, reach, region if region is not None else (0, grid.shape[0], 0, grid.shape[1]))
+        self._origin, self._resolution = grid.origin, res
+        self._version, self._grid = grid.version, weakref.ref(grid)
+        return self.values
+
+    def _grows_into(self, grid: OccupancyGrid) -> bool:
+        """Whether ``grid`` holds the extent kept so far, on the same cell boundaries (it grew or stayed)."""
+        res = grid.resolution
+        left = (self._origin[0] - grid.origin[0]) / res
+        below = (self._origin[1] - grid.origin[1]) / res
+        if abs(left - round(left)) > 1e-6 or abs(below - round(below)) > 1e-6 or left < 0 or below < 0:
+            return False
+        h, w = self.values.shape
+        return round(below) + h <= grid.shape[0] and round(left) + w <= grid.shape[1]
+
+    def _pad(self, grid: OccupancyGrid, reach: int) -> bool:
+        """Grow the kept field and walls to ``grid``'s extent; walls within ``reach`` of the old border are
+        forgotten, so that they count as changed and the new cells near them are computed. Whether it grew."""
+        res = grid.resolution
+        left = int(round((self._origin[0] - grid.origin[0]) / res))
+        below = int(round((self._origin[1] - grid.origin[1]) / res))
+        h, w = self.values.shape
+        if (below, left) == (0, 0) and (h, w) == grid.shape:
+            return False
+        far = _field_values(np.zeros((1, 64), bool), res, self.sigma)[0, 0]  # 10 σ or more from any wall
+        pad = ((below, grid.shape[0] - h - below), (left, grid.shape[1] - w - left))
+        self.values = np.pad(self.values, pad, constant_values=np.float32(far))
+        self.known = np.pad(self.known, pad)
+        occ = self._occ.copy()
+        band = np.ones((h, w), bool)
+        band[reach:h - reach, reach:w - reach] = False
+        occ[band] = False
+        self._occ = np.pad(occ, pad)
+        return True
+
+    def _recompute(self, grid: OccupancyGrid, res: float, reach: int, region: tuple[int, int, int, int]) -> None:
+        """Take the walls of ``grid`` in ``region`` (row0, row1, col0, col1; none changed outside it) and recompute
+        the tiles within a tile of a changed wall, each group of them on a crop ``reach`` wider."""
+        t = max(self.TILE, reach)
+        h, w = grid.shape
+        # The region widened to whole tiles, and a tile more each side for the changes' reach.
+        t0, t1, u0, u1 = region[0] // t, -(-region[1] // t), region[2] // t, -(-region[3] // t)
+        if t1 <= t0 or u1 <= u0:
+            return
+        r0, r1, c0, c1 = t0 * t, min(t1 * t, h), u0 * t, min(u1 * t, w)
+        data = grid.data[r0:r1, c0:c1]
+        self.known[r0:r1, c0:c1] = data != UNKNOWN
+        occ = data == OCCUPIED
+        changed = np.zeros(((t1 - t0) * t, (u1 - u0) * t), bool)
+        changed[:r1 - r0, :c1 - c0] = self._occ[r0:r1, c0:c1] != occ
+        if not changed.any():
+            return
+        self._occ[r0:r1, c0:c1] = occ
+        tiles = np.zeros((t1 - t0 + 2, u1 - u0 + 2), bool)
+        tiles[1:-1, 1:-1] = changed.reshape(t1 - t0, t, u1 - u0, t).any(axis=(1, 3))
+        dirty = ndimage.binary_dilation(tiles, np.ones((3, 3), bool))
+        labels, _ = ndimage.label(dirty, np.ones((3, 3), int))
+        for box in ndimage.find_objects(labels):
+            r0, r1 = max((t0 - 1 + box[0].start) * t, 0), min((t0 - 1 + box[0].stop) * t, h)
+            c0, c1 = max((u0 - 1 + box[1].start) * t, 0), min((u0 - 1 + box[1].stop) * t, w)
+            if r1 <= r0 or c1 <= c0:
+                continue
+            a0, a1 = max(r0 - reach, 0), min(r1 + reach, h)
+            b0, b1 = max(c0 - reach, 0), min(c1 + reach, w)
+            crop = _field_values(self._occ[a0:a1, b0:b1], res, self.sigma)
+            self.values[r0:r1, c0:c1] = crop[r0 - a0:r1 - a0, c0 - b0:c1 - b0]
+            self.tiles_recomputed += int(np.count_nonzero(dirty[box]))
 
 
 def points_field(points: np.ndarray, resolution: float, sigma: float = SIGMA, margin: float = 1.0,
@@ -160,13 +286,21 @@ def points_field(points: np.ndarray, resolution: float, sigma: float = SIGMA, ma
 def _pool(values: np.ndarray) -> np.ndarray:
     """Max-pool (H, W) by 2 (padding with zeros): a coarse cell bounds the four fine cells in it."""
     h, w = values.shape
-    if h % 2 or w % 2:
-        padded = np.zeros((h + h % 2, w + w % 2), dtype=values.dtype)
-        padded[:h, :w] = values
-        values = padded
-    # Four strided views: far faster than a reshape's max over two axes.
-    return np.maximum(np.maximum(values[0::2, 0::2], values[1::2, 0::2]),
-                      np.maximum(values[0::2, 1::2], values[1::2, 1::2]))
+    h2, w2 = h // 2, w // 2
+    out = np.zeros((h - h2, w - w2), dtype=values.dtype)
+    # Four strided views: far faster than a reshape's max over two axes (max is exact in any order). An odd
+    # last row or column is pooled with the zeros it is padded with, without copying the whole array.
+    even = out[:h2, :w2]
+    np.maximum(values[0:2 * h2:2, 0:2 * w2:2], values[1:2 * h2:2, 0:2 * w2:2], out=even)
+    np.maximum(even, values[0:2 * h2:2, 1:2 * w2:2], out=even)
+    np.maximum(even, values[1:2 * h2:2, 1:2 * w2:2], out=even)
+    if h % 2:
+        np.maximum(np.maximum(values[h - 1, 0:2 * w2:2], values[h - 1, 1:2 * w2:2]), out[h2, :w2], out=out[h2, :w2])
+    if w % 2:
+        np.maximum(np.maximum(values[0:2 * h2:2, w - 1], values[1:2 * h2:2, w - 1]), out[:h2, w2], out=out[:h2, w2])
+    if h % 2 and w % 2:
+        out[h2, w2] = max(values[h - 1, w - 1], out[h2, w2])
+    return out
 
 
 class CorrelativeMatcher:
@@ -184,6 +318,7 @@ class CorrelativeMatcher:
         prior_theta: float = PRIOR_THETA,
         field_max_age: int = 0,
         candidates: int = 1,
+        whole_field: bool = False,
     ) -> None:
         self.window_xy = window_xy
         self.candidates = candidates  # top-level poses refined (more: a wide window's peaks not lost to a coarse tie)
@@ -196,6 +331,9 @@ class CorrelativeMatcher:
         self.refine = refine
         self.field_max_age = field_max_age
         self._cache: tuple[int, int, tuple[float, float], float, LikelihoodField] | None = None
+        # The field of the whole grid kept up to date (GridField), cut for each match: for a grid matched again
+        # and again as it grows (a SLAM's map), where computing each match's crop afresh is most of the cost.
+        self.whole: GridField | None = GridField(sigma) if whole_field else None
 
     def match(self, grid: OccupancyGrid, points: np.ndarray, prior: Pose2, max_range: float = 5.0) -> MatchResult:
         """Best pose of the scan ``points`` (M, 2) [m, base_link] in ``grid`` near ``prior`` [map].
@@ -247,7 +385,8 @@ class CorrelativeMatcher:
                 and abs(prior.x - c[2][0]) + half <= c[3] and abs(prior.y - c[2][1]) + half <= c[3]):
             return c[4]
         margin = FIELD_MARGIN if self.field_max_age > 0 else 0.0
-        field = likelihood_field(grid, (prior.x, prior.y), half + margin, self.sigma)
+        field = likelihood_field(grid, (prior.x, prior.y), half + margin, self.sigma, self.whole,
+                                 copy=self.field_max_age > 0)
         if self.field_max_age > 0:
             self._cache = (id(grid), grid.version, (prior.x, prior.y), half + margin, field)
         return field

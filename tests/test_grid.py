@@ -97,3 +97,52 @@ def test_a_blanked_scan_clears_nothing_while_a_scan_of_open_space_still_does():
     open_gap = np.where(np.abs(angles - math.pi / 2) < 0.2, np.inf, 1.5).astype(np.float32)
     grid.integrate(Scan(0.2, -math.pi, 2 * math.pi / 360, open_gap, 0.15, 6.0), Pose2())
     assert grid.value_at(0.0, 4.0) == FREE
+
+
+def _classified(grid: OccupancyGrid) -> np.ndarray:
+    out = np.full(grid.shape, UNKNOWN, np.int8)
+    out[grid.logodds > 0.40] = OCCUPIED
+    out[grid.logodds < -0.20] = FREE
+    return out
+
+
+def test_the_map_view_updated_where_scans_changed_it_is_the_view_computed_afresh():
+    # Scans round the loop (the grid grows past its edges), read after every scan and after every third: the
+    # view recomputed where the scans since changed the grid equals the view of all its log-odds, and an
+    # array read before an update is never changed by it.
+    world = truth("loop")
+    rng = np.random.default_rng(8)
+    grid = OccupancyGrid(0.05, shape=(40, 40))
+    before = None
+    for i, pose in enumerate(path_poses([(-8.4, -8.4), (8.4, -8.4), (8.4, 8.4)], speed=2.0)):
+        grid.integrate(cast_scan(world, pose, 0.0, rng, dropout=0.02), pose)
+        if i % 3:
+            continue
+        if before is not None:
+            old, kept = before
+            assert np.array_equal(old, kept)
+        view = grid.data
+        assert np.array_equal(view, _classified(grid))
+        before = (view, view.copy())
+    assert grid.shape[0] > 40 and grid.shape[1] > 40
+
+
+def test_changed_since_bounds_every_changed_cell_and_says_when_it_does_not_know():
+    world = truth("loop")
+    rng = np.random.default_rng(9)
+    grid = OccupancyGrid(0.05)
+    pose = Pose2(-8.4, -8.4, 0.3)
+    grid.integrate(cast_scan(world, pose, 0.0, rng), pose)
+    v, old = grid.version, grid.logodds.copy()
+    pose2 = Pose2(-6.0, -8.4, 0.0)
+    grid.integrate(cast_scan(world, pose2, 0.0, rng), pose2)
+    grid.integrate(cast_scan(world, pose2, 0.0, rng), pose2)
+    r0, r1, c0, c1 = grid.changed_since(v)
+    assert old.shape == grid.shape  # no growth here: cells compare one to one
+    changed = old != grid.logodds
+    assert changed.any()
+    assert not changed[:r0].any() and not changed[r1:].any()
+    assert not changed[:, :c0].any() and not changed[:, c1:].any()
+    assert grid.changed_since(grid.version) == (0, 0, 0, 0)
+    grid.clear_cache()  # changed from outside, nobody said where
+    assert grid.changed_since(v) is None

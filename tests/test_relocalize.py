@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
-from homing.mapping.relocalize import relocalise
+from homing.mapping.relocalize import CHUNK, best_first, coarse_scores, relocalise
 from homing.robot import Odometry, Pose2, Twist2
 from homing.sim import SimRobot, load_world
 
@@ -99,3 +99,36 @@ def test_found_again_it_tracks_at_full_odometry_scale_whatever_the_floor_it_was_
     assert scale_at_finding == 1.0
     assert slam.slip_switches == 0  # the scans that did not fit said nothing about slip
     assert len(errors) > 20 and max(errors) < 0.10, errors
+
+
+def test_coarse_scores_are_the_pooled_field_under_each_turned_scan_at_each_candidate() -> None:
+    # The gather by whole-cell steps gives, for every candidate cell and heading, the mean pooled value under
+    # the scan's points placed at the cell's centre and turned, as scoring each pose on its own does.
+    rng = np.random.default_rng(4)
+    pooled = rng.random((23, 31)).astype(np.float32)
+    size = 0.4
+    rows, cols = np.nonzero(rng.random(pooled.shape) < 0.5)  # more candidates than one chunk holds
+    assert len(rows) > CHUNK
+    pts = rng.uniform(-6.0, 6.0, (40, 2))
+    thetas = np.arange(0.0, 2 * math.pi, math.radians(5.0))
+    scores = coarse_scores(pooled, rows, cols, size, pts, thetas)
+    h, w = pooled.shape
+    for n in rng.integers(len(rows), size=25):
+        cx, cy = (cols[n] + 0.5) * size, (rows[n] + 0.5) * size
+        for t in rng.integers(len(thetas), size=8):
+            c, s = math.cos(thetas[t]), math.sin(thetas[t])
+            col = np.floor((cx + c * pts[:, 0] - s * pts[:, 1]) / size).astype(int)
+            row = np.floor((cy + s * pts[:, 0] + c * pts[:, 1]) / size).astype(int)
+            inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
+            expect = np.where(inside, pooled[np.clip(row, 0, h - 1), np.clip(col, 0, w - 1)], 0.0).mean()
+            assert scores[n, t] == pytest.approx(expect, abs=1e-6)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_best_first_is_argsort_largest_first_with_or_without_ties(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    distinct = rng.random((300, 72)).astype(np.float32)
+    tied = np.round(distinct * 20) / 20  # many equal scores, at the cut too
+    for scores in (distinct, tied):
+        expect = np.argsort(scores, axis=None)[::-1][:48]
+        assert np.array_equal(best_first(scores, 48), expect)

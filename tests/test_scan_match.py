@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
-from homing.mapping.scan_match import CorrelativeMatcher
+from homing.mapping.scan_match import CorrelativeMatcher, GridField, likelihood_field
 from homing.robot import Pose2
 
 from tests.mapping_helpers import cast_scan, drifting_odometry, odometry_msg, path_poses, truth
@@ -199,3 +199,54 @@ def test_polish_moves_a_pose_a_few_centimetres_off_towards_the_walls_where_the_t
         assert loose.distance_to(pose) < 0.7 * off.distance_to(pose), loose
         assert tight.distance_to(pose) > 0.95 * off.distance_to(pose), tight
         assert abs(loose.theta - pose.theta) < math.radians(0.3)
+
+
+def test_the_kept_field_of_a_growing_grid_is_the_whole_grid_field_bit_for_bit() -> None:
+    # A run round the loop grows the grid past its first extent several times; after every scan the field
+    # recomputed tile by tile equals the field computed afresh over the whole grid, to the last bit.
+    world = truth("loop")
+    rng = np.random.default_rng(5)
+    grid, kept = OccupancyGrid(0.05, shape=(40, 40)), GridField()
+    sizes = set()
+    for pose in path_poses([(-8.4, -8.4), (8.4, -8.4), (8.4, 8.4), (-8.4, 8.4)], speed=2.0):
+        grid.integrate(cast_scan(world, pose, 0.0, rng, dropout=0.02), pose)
+        values = kept.update(grid)
+        fresh = likelihood_field(grid, (0.0, 0.0), 1e3).values
+        assert values.shape == grid.shape
+        assert np.array_equal(values, fresh)
+        assert np.array_equal(kept.known, grid.data != -1)
+        sizes.add(grid.shape)
+    assert len(sizes) > 2  # it grew
+    assert kept.tiles_recomputed > 0  # the tile by tile path ran, not only whole recomputations
+
+
+def test_a_crop_of_the_kept_field_is_the_fresh_crop_away_from_its_edge() -> None:
+    # Within the crop, farther than the field's reach (10 sigma) from its edge, cutting the whole grid's field
+    # gives the fresh crop's values exactly; nearer the edge only walls outside the crop may differ.
+    world = truth("loop")
+    rng = np.random.default_rng(6)
+    grid = OccupancyGrid(0.05)
+    for pose in path_poses([(-8.4, -8.4), (8.4, -8.4)], speed=2.0):
+        grid.integrate(cast_scan(world, pose, 0.0, rng), pose)
+    kept = GridField()
+    for centre in [(-3.0, -8.4), (2.2, -7.9)]:
+        fresh = likelihood_field(grid, centre, 3.0)
+        cut = likelihood_field(grid, centre, 3.0, whole=kept)
+        assert fresh.origin == cut.origin and fresh.values.shape == cut.values.shape
+        assert np.array_equal(fresh.known, cut.known)
+        inner = int(np.ceil(1.0 / 0.05)) + 1
+        assert np.array_equal(fresh.values[inner:-inner, inner:-inner], cut.values[inner:-inner, inner:-inner])
+        assert (cut.values >= fresh.values).all()  # a wall outside the crop only ever raises the field
+
+
+@pytest.mark.parametrize("shape", [(7, 9), (8, 9), (7, 8), (8, 8), (1, 1), (1, 4), (3, 1)])
+def test_pooling_is_the_max_of_each_two_by_two_block_padded_with_zeros(shape: tuple[int, int]) -> None:
+    from homing.mapping.scan_match import _pool
+
+    rng = np.random.default_rng(sum(shape))
+    for values in (rng.random(shape).astype(np.float32), -rng.random(shape).astype(np.float32)):
+        h, w = shape
+        padded = np.zeros((h + h % 2, w + w % 2), np.float32)
+        padded[:h, :w] = values
+        expect = padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).max(axis=(1, 3))
+        assert np.array_equal(_pool(values), expect)
