@@ -426,13 +426,16 @@ def test_a_kobuki_under_kobuki_ros_gives_dock_ir_bumpers_and_camera_frames(tmp_p
             image_pub.publish(image)
             bumper_pub.publish(m("kobuki_ros_interfaces/msg/BumperEvent", bumper=1, state=1))
 
-        def seen() -> bool:  # the robot's subscriptions are discovered asynchronously: send until they hear
+        heard: list = []
+
+        def seen() -> bool:  # the robot's subscriptions are discovered asynchronously: send until all of them hear
             send()
-            obs = robot.observe()
-            return obs.image is not None and obs.bumpers.centre
+            heard[:] = [robot.observe()]  # checked below as observed (a dock IR reading goes stale on a busy machine)
+            obs = heard[0]
+            return obs.image is not None and obs.bumpers.centre and obs.dock_ir.any()
 
         assert wait_until(seen)
-        obs = robot.observe()
+        obs = heard[0]
         assert obs.dock_ir.right == IR.NEAR_LEFT and obs.dock_ir.centre == IR.FAR_CENTER | IR.NEAR_CENTER
         assert obs.dock_ir.left == IR.NONE and obs.bumpers.any() and not obs.bumpers.left
         assert obs.image is not None and np.array_equal(obs.image.image, pixels)  # bgr8 with padding read as RGB
