@@ -25,12 +25,13 @@ explorer and its blacklist survive the restart.
 "Done" means done (:mod:`homing.mapping.explorer`, :mod:`homing.mapping.reachable`):
 SUCCESS only when the map has no frontier the robot's footprint could reach
 from where it is (frontiers behind gaps narrower than the robot are reported
-in the feedback message, with the robot's coverage estimate). When the only
-ones left are places it gave up (no progress, unreachable, not cleared, cut
+in the feedback message, with the robot's coverage estimate, as are places
+it stood at and looked into without clearing them). When the only ones
+left are places it gave up before it looked (no progress, unreachable, cut
 off), exploration is **incomplete**: FAILURE ``incomplete`` with the same
 report, ``/explore/explored`` stays False, and the next start of the leaf
-(a recovery round, or the persistent mission's next round) tries every one
-of them again. Frontiers it could reach but the costmap cuts off end the leaf
+(a recovery round, or the persistent mission's next round) tries them
+again, up to ``RETRY_ROUNDS`` times each (:meth:`Explorer.forgive`). Frontiers it could reach but the costmap cuts off end the leaf
 with FAILURE ``frontier_cut_off`` (or ``frontier_not_cleared``) for the
 recoveries; after a round of them those frontiers are given up.
 """

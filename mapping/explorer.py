@@ -29,8 +29,9 @@ Frontiers given up before it looked (no progress, unreachable, cut off…):
 done *incomplete* (``ExploreStep.gave_up`` > 0) — the caller reports it as
 such, not as explored, and may :meth:`Explorer.forgive` them to try again;
 a place given up again on ``RETRY_ROUNDS`` retry rounds is given up for
-good, its reason saying so, and no longer keeps exploration incomplete. A site the
-costmap still reaches but the strategy declined (too small for its rule) is
+good, its reason saying so, and no longer keeps exploration incomplete.
+
+A site the costmap still reaches but the strategy declined (too small for its rule) is
 visited anyway: the robot stands against it, or for a door seen only at a
 grazing angle (a peek site) within ``PEEK`` of it, to look through. A site
 the costmap cuts off (inflation in a doorway, a transient obstacle, a
