@@ -8,6 +8,7 @@ import sys
 import tempfile
 import threading
 from types import FrameType
+from typing import Any
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -99,16 +100,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"computer battery: {emulation.folder / 'computer_battery'}")
     print(f"robot file: {emulation.robot_file}")
     print(f"world {world.name}, seed {args.seed}: running until Ctrl-C", flush=True)
-    try:
-        done.wait(until)
-    finally:
-        emulation.stop()
-    s = emulation.status()
-    x, y, th = s["truth"]
-    print(f"stopped at t={s['time']:.1f} s: {s['packets']} packets sent, {s['commands']} commands received, "
-          f"{s['frames']} camera frames; robot at ({x:.2f}, {y:.2f}, {th:.2f}), {s['distance']:.2f} m travelled")  # fmt: skip
-    sys.stdout.flush()
-    return 0
+    return _serve(emulation, done, until, "{packets} packets sent, {commands} commands received, {frames} camera frames")
 
 
 def _run_ros2(args: argparse.Namespace, world: object, folder: str, until: float | None) -> int:
@@ -139,13 +131,19 @@ def _run_ros2(args: argparse.Namespace, world: object, folder: str, until: float
     print(emulation.endpoint)
     print(f"robot file: {emulation.robot_file}")
     print(f"world {world.name}, seed {args.seed}: a ROS 2 robot over Zenoh, running until Ctrl-C", flush=True)  # type: ignore[attr-defined]
+    return _serve(emulation, done, until, "{commands} commands received")
+
+
+def _serve(emulation: Any, done: threading.Event, until: float | None, traffic: str) -> int:
+    """Serve until a signal or ``until`` [s], stop, and print what passed (``traffic``: a format over the
+    emulation's status) and where the robot ended."""
     try:
         done.wait(until)
     finally:
         emulation.stop()
     s = emulation.status()
     x, y, th = s["truth"]
-    print(f"stopped at t={s['time']:.1f} s: {s['commands']} commands received; "
-          f"robot at ({x:.2f}, {y:.2f}, {th:.2f}), {s['distance']:.2f} m travelled")  # fmt: skip
+    print(f"stopped at t={s['time']:.1f} s: {traffic.format(**s)}; robot at ({x:.2f}, {y:.2f}, {th:.2f}), "
+          f"{s['distance']:.2f} m travelled")
     sys.stdout.flush()
     return 0
