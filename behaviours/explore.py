@@ -8,10 +8,13 @@ service's costmap; driving is the navigator's (``/nav/navigator``). The leaf
 only decides *when* to ask for a decision, hands the goal to the navigator
 and returns its status.
 
-Cost per tick: the distance field (fast marching over the whole grid, tens
-of ms on a 25 m map) and the strategy run only every ``decide_period`` [s] of
-adapter time, at once when the navigator reaches or fails its goal, and never
-otherwise; the other ticks cost one navigator step.
+Cost per tick: decisions come every ``decide_period`` [s] of adapter time,
+at once when the navigator reaches or fails its goal, and never otherwise;
+the other ticks cost one navigator step. A decision that keeps the goal
+(the navigator has a path to it, the strategy does not replan yet) measures
+progress on the navigator's path length and costs next to nothing; the
+distance field (fast marching over the whole grid, tens of ms on a 25 m
+map) is computed only for decisions that choose.
 
 Failures: a goal the navigator cannot plan to (``no_path``,
 ``goal_occupied``) or that pressed the bumpers too often on the way
@@ -78,6 +81,10 @@ def distance_field(navigator: Any, grid: Any, pose: Pose2) -> np.ndarray | None:
     if navigator.costmap.shape != grid.shape:
         return None
     return distance_map(navigator.costmap, pose, allow_unknown=False)
+
+
+class _StartBlocked(Exception):
+    """The robot's own cell is blocked on the costmap: the distance field is empty."""
 
 
 @register("Explore")
@@ -182,11 +189,26 @@ class Explore(_ReportsFailure):
         return Status.RUNNING
 
     def _decide(self, grid: Any, pose: Pose2, now: float) -> Status | None:
-        distance = distance_field(self.navigator, grid, pose)
-        if distance is None:
+        if self.navigator.costmap.shape != grid.shape:
             return None  # the costmap has not caught up with a grown grid: next tick
         self._next_decision = now + self.decide_period
-        if not np.isfinite(distance).any():
+        nav = self.navigator
+        travel = None
+        if (self._nav_goal is not None and nav.status is NavStatus.RUNNING and nav.goal is self._nav_goal
+                and nav.feedback.error is None and nav.feedback.path is not None):
+            travel = float(nav.feedback.distance_remaining)
+
+        def field() -> np.ndarray:
+            distance = distance_field(nav, grid, pose)
+            assert distance is not None
+            if not np.isfinite(distance).any():
+                raise _StartBlocked
+            return distance
+
+        try:
+            # Without the navigator's path, the field is asked for at once (is the robot's own cell free?).
+            step = self._explorer().update(grid, pose, field if travel is not None else field(), now, travel)
+        except _StartBlocked:
             # The robot's own cell is blocked on the costmap: nothing is reachable, which is not "explored".
             if self._blocked_since is None:
                 self._blocked_since = now
@@ -195,7 +217,6 @@ class Explore(_ReportsFailure):
                 return self.fail("start_occupied", "the robot stands in an obstacle on the costmap")
             return None
         self._blocked_since = None
-        step = self._explorer().update(grid, pose, distance, now)
         self.last_step = step
         if step.done:
             self.navigator.cancel()

@@ -156,14 +156,21 @@ def navigable_truth(truth: MapData, start_xy: tuple[float, float]) -> Navigable:
     return _NAVIGABLE["value"]
 
 
+_CELLS: dict[str, Any] = {}  # _under_navigable's navigable cells: the answer they come from, rows, cols, centres
+
+
 def _under_navigable(grid: OccupancyGrid, truth: MapData, start_xy: tuple[float, float],
                      world_from_map: Pose2 | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The truth's navigable cells (rows, cols) and the grid's value under each one's centre (UNKNOWN off it)."""
     world_from_map = world_from_map or Pose2()
-    rows, cols = np.nonzero(navigable_truth(truth, start_xy).mask)
-    x = truth.origin[0] + (cols + 0.5) * truth.resolution
-    y = truth.origin[1] + (rows + 0.5) * truth.resolution
-    pts = world_from_map.inverse().transform_points(np.column_stack([x, y]))
+    nav = navigable_truth(truth, start_xy)
+    if _CELLS.get("of") is not nav:  # the cells and their centres, kept with the answer they come from
+        rows, cols = np.nonzero(nav.mask)
+        xy = np.column_stack([truth.origin[0] + (cols + 0.5) * truth.resolution,
+                              truth.origin[1] + (rows + 0.5) * truth.resolution])
+        _CELLS.update({"of": nav, "rows": rows, "cols": cols, "xy": xy})
+    rows, cols = _CELLS["rows"], _CELLS["cols"]
+    pts = world_from_map.inverse().transform_points(_CELLS["xy"])
     gr, gc = grid.world_to_cell(pts[:, 0], pts[:, 1])
     ok = grid.in_bounds(gr, gc)
     value = np.full(len(rows), UNKNOWN, dtype=grid.data.dtype)

@@ -11,7 +11,10 @@ Shared by every strategy, so that they differ only in their rule:
 - a goal whose travel distance has not shrunk by ``PROGRESS_STEP`` for
   ``progress_timeout`` [s] is blacklisted (explore_lite: 30 s), as is one
   navigation failed on; blacklisted points exclude goals within
-  ``blacklist_radius``;
+  ``blacklist_radius``. The travel distance is the navigator's path length
+  when the caller passes it (``travel``), else the distance field's value:
+  the field (fast marching over the whole map, the costly part of a
+  decision) is then computed only for decisions that choose a goal;
 - cells within ``reach_radius`` of the robot are never chosen (they would
   count as reached at once).
 
@@ -51,6 +54,7 @@ adapter's clock).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -124,8 +128,10 @@ class Explorer:
         self.retries = 0  # times the places given up were tried again (forgive)
         self.rounds: list[tuple[float, float, int]] = []  # (x, y) [m] of places forgiven and how many times
         self._best_distance = math.inf
+        self._best_travel = math.inf  # the navigator's path length to the goal, the least so far [m]
         self._last_progress = 0.0
         self._last_choice = -math.inf
+        self.fields = 0  # distance fields asked for (the costly part of a decision)
 
     def report_failure(self, reason: str = "nav_failed") -> None:
         """Navigation failed to reach the goal (``reason``): blacklist it and choose another on the next update."""
@@ -187,13 +193,27 @@ class Explorer:
             return "no frontier left"
         return self.report.summary(self.given_up())
 
-    def update(self, grid: OccupancyGrid, pose: Pose2, distance: np.ndarray, now: float) -> ExploreStep:
+    def update(self, grid: OccupancyGrid, pose: Pose2, distance: np.ndarray | Callable[[], np.ndarray], now: float,
+               travel: float | None = None) -> ExploreStep:
         """One decision. ``pose`` base_link in ``map``; ``distance`` (H, W) [m] travel distance from the robot
-        on ``grid``'s cells (inf = unreachable); ``now`` [s] adapter time."""
-        if distance.shape != grid.shape:
-            raise ValueError(f"distance field {distance.shape} does not match the grid {grid.shape}")
+        on ``grid``'s cells (inf = unreachable), or a function that computes it, called only when this decision
+        needs it; ``now`` [s] adapter time; ``travel`` [m] the navigator's path length to the current goal when it
+        has one (progress is then measured on it, and a decision that keeps the goal needs no field)."""
+        cache: list[np.ndarray] = [distance] if isinstance(distance, np.ndarray) else []
+
+        def field() -> np.ndarray:
+            if not cache:
+                assert callable(distance)
+                cache.append(distance())
+                self.fields += 1
+            if cache[0].shape != grid.shape:
+                raise ValueError(f"distance field {cache[0].shape} does not match the grid {grid.shape}")
+            return cache[0]
+
+        if cache:
+            field()
         changed = False
-        if self.goal is not None and self._give_up(grid, pose, distance, now):
+        if self.goal is not None and self._give_up(grid, pose, field, now, travel):
             self.goal = None
         replan = (
             self.goal is not None
@@ -201,6 +221,7 @@ class Explorer:
             and now - self._last_choice >= self.strategy.replan_period
         )
         if self.goal is None or replan:
+            distance = field()
             choice = self.strategy.choose(self._context(grid, pose, distance))
             self._last_choice = now
             if choice is None:
@@ -222,6 +243,7 @@ class Explorer:
                 self.goal = new_goal
                 self.goals_chosen += 1
                 self._best_distance = float(distance[choice.cell])
+                self._best_travel = math.inf
                 self._last_progress = now
             self.choice = choice
         return ExploreStep(self.goal, changed, False, self.choice)
@@ -272,7 +294,8 @@ class Explorer:
         return ExploreStep(None, True, False, None, stuck=reason, report=report)
 
     # ---------------------------------------------------------------- rules
-    def _give_up(self, grid: OccupancyGrid, pose: Pose2, distance: np.ndarray, now: float) -> bool:
+    def _give_up(self, grid: OccupancyGrid, pose: Pose2, field: Callable[[], np.ndarray], now: float,
+                 travel: float | None) -> bool:
         assert self.goal is not None
         if pose.distance_to(self.goal) <= self.reach_radius:
             # Reached: choose the next one (thesis). A place reached again and again without its frontier
@@ -288,14 +311,18 @@ class Explorer:
             return True
         cell = grid.world_to_cell(self.goal.x, self.goal.y)
         r, c = int(cell[0]), int(cell[1])
-        if not grid.in_bounds(np.int64(r), np.int64(c)) or not np.isfinite(distance[r, c]):
+        if travel is not None and math.isfinite(travel):
+            # The navigator has a path to the goal: it is reachable, and the path's length is the progress.
+            if travel < self._best_travel - PROGRESS_STEP:
+                self._best_travel = travel
+                self._last_progress = now
+        elif not grid.in_bounds(np.int64(r), np.int64(c)) or not np.isfinite(field()[r, c]):
             self._blacklist(self.goal.x, self.goal.y, "unreachable")
             return True
-        d = float(distance[r, c])
-        if d < self._best_distance - PROGRESS_STEP:
+        elif (d := float(field()[r, c])) < self._best_distance - PROGRESS_STEP:
             self._best_distance = d
             self._last_progress = now
-        elif now - self._last_progress > self.progress_timeout:
+        if now - self._last_progress > self.progress_timeout:
             self._blacklist(self.goal.x, self.goal.y, "no_progress")
             return True
         spent = getattr(self.strategy, "goal_spent", None)

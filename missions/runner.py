@@ -122,7 +122,8 @@ class Runner:
     resume: Any = None  # a homing.lifecycle.rundir.Snapshot to start from (--resume)
     meta: dict[str, Any] = field(default_factory=dict)  # what the run is (mission, world, seed), kept in snapshots
     snapshots: int = 0
-    timing: dict[str, float] | None = None  # set to {} to add up the wall time [s] of each part of a tick
+    timing: dict[str, float] | None = None  # set to {} to add up the time [s] of each part of a tick
+    timing_clock: Callable[[], float] = time.perf_counter  # what ``timing`` adds up (time.process_time: CPU)
 
     def __post_init__(self) -> None:
         # py_trees keeps one blackboard per process: a run starts from an empty one, not from the last run's values.
@@ -188,11 +189,11 @@ class Runner:
 
     def tick(self) -> Status:
         """One tick of ARCHITECTURE.md: observe, services, tree, command; the caller steps."""
-        timing = self.timing
-        lap = time.perf_counter() if timing is not None else 0.0
+        timing, clock = self.timing, self.timing_clock
+        lap = clock() if timing is not None else 0.0
         obs = self.robot.observe()
         if timing is not None:
-            lap = _lap(timing, "adapter: observe", lap)
+            lap = _lap(timing, "adapter: observe", lap, clock)
         self.observation = obs
         self.now = float(obs.stamp)
         self.bb.set("/robot/observation", obs, overwrite=True)
@@ -205,7 +206,7 @@ class Runner:
         for service in self.services:
             service.update(obs)
             if timing is not None:
-                lap = _lap(timing, f"service: {service.name}", lap)
+                lap = _lap(timing, f"service: {service.name}", lap, clock)
         if rec is not None:
             rec.record_tags(obs.stamp, self.read(TAGS_KEY) or [])
         self.bb.set("/cmd_vel", None, overwrite=True)
@@ -214,11 +215,11 @@ class Runner:
         self.tree.tick()
         self._sweep()
         if timing is not None:
-            lap = _lap(timing, "tree: leaves and runner", lap)
+            lap = _lap(timing, "tree: leaves and runner", lap, clock)
         if self.run_dir is not None and self.read(SAVE_KEY):
             self.save_snapshot()
             if timing is not None:
-                lap = _lap(timing, "run directory", lap)
+                lap = _lap(timing, "run directory", lap, clock)
         cmd = self.bb.get("/cmd_vel")
         self.last_command = self.robot.command(cmd.v, cmd.omega) if isinstance(cmd, Twist2) else self.robot.command(0.0, 0.0)
         publish_world = getattr(self.robot, "publish_world", None)
@@ -255,9 +256,9 @@ class Runner:
                 if self._stop_requested or stop_requested():
                     break  # asked to stop (request_stop, or a signal whose exception was swallowed on its way)
                 if self.timing is not None:
-                    lap = time.perf_counter()
+                    lap = self.timing_clock()
                     self.robot.step(self.next_step())
-                    _lap(self.timing, "adapter: step (simulation)", lap)
+                    _lap(self.timing, "adapter: step (simulation)", lap, self.timing_clock)
                 else:
                     self.robot.step(self.next_step())
                 self._pace()
@@ -348,9 +349,9 @@ class Runner:
             return None
 
 
-def _lap(timing: dict[str, float], part: str, since: float) -> float:
-    """Add the wall time since ``since`` to ``timing[part]``; return now (the next part's start)."""
-    now = time.perf_counter()
+def _lap(timing: dict[str, float], part: str, since: float, clock: Callable[[], float] = time.perf_counter) -> float:
+    """Add the time on ``clock`` since ``since`` to ``timing[part]``; return now (the next part's start)."""
+    now = clock()
     timing[part] = timing.get(part, 0.0) + (now - since)
     return now
 

@@ -204,14 +204,21 @@ class Costmap:
         static = np.zeros(data.shape, dtype=np.uint8)
         static[data < 0] = NO_INFORMATION
         static[data >= 50] = LETHAL
-        self.static = static
+        old, self.static = self.static, static
         if not same:
             self.resolution = float(resolution)
             self.origin = (float(origin[0]), float(origin[1]))
             self.obstacles = np.zeros(data.shape, dtype=bool)
             if old_pts is not None:
                 self._mark(old_pts)
-        self._inflate()
+            self._inflate()
+            return
+        # The same lattice: only the cells whose static value changed (the few metres a second of mapping
+        # touches) are re-inflated, round the box that holds them, not the whole floor.
+        changed = old != static
+        if changed.any():
+            rows, cols = np.flatnonzero(changed.any(axis=1)), np.flatnonzero(changed.any(axis=0))
+            self._inflate((int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1))
 
     def require(self, xmin: float, ymin: float, xmax: float, ymax: float) -> None:
         """Make the costmap span the box [m] (``map``) as well as the grid; cells beyond the grid are unknown."""

@@ -47,8 +47,13 @@ class Pose2:
         """Map (N, 2) points from this pose's frame into its parent frame."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         c, s = math.cos(self.theta), math.sin(self.theta)
-        R = np.array([[c, -s], [s, c]])
-        return pts @ R.T + np.array([self.x, self.y])
+        x, y = pts[:, 0], pts[:, 1]
+        out = np.empty_like(pts)
+        # Written out rather than ``pts @ R.T``: a matrix product of a tall (N, 2) array with a 2 × 2 one is
+        # several times slower than four scaled columns (a coverage check moves a million cell centres).
+        out[:, 0] = c * x - s * y + self.x
+        out[:, 1] = s * x + c * y + self.y
+        return out
 
     def distance_to(self, other: Pose2) -> float:
         return math.hypot(other.x - self.x, other.y - self.y)

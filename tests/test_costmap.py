@@ -136,3 +136,34 @@ def test_updating_after_each_scan_gives_the_costmap_a_full_recomputation_gives()
         near = cm.clearance < horizon
         assert np.allclose(clearance[near], cm.clearance[near]), f"scan {k}: clearance differs"
         assert (clearance[~near] >= horizon - 1e-6).all()
+
+
+def test_a_new_static_map_on_the_same_lattice_gives_what_a_full_recomputation_gives() -> None:
+    # A new /map/grid snapshot re-inflates only round the cells whose static value changed (mapping touches
+    # a few metres a second); the cost must be that of inflating the whole map, snapshot after snapshot:
+    # walls appearing and vanishing, unknown cells becoming free, with scan marks in the obstacle layer.
+    rng = np.random.default_rng(3)
+    g = np.full((100, 140), -1, dtype=np.int8)
+    g[40:60, 50:90] = 0
+    cm = Costmap()
+    cm.set_static(g, RES, (0.0, 0.0))
+    cm._mark(np.array([[3.0, 2.5], [3.5, 2.6]]))
+    cm._inflate()
+    for k in range(20):
+        r, c = int(rng.integers(5, 80)), int(rng.integers(5, 120))
+        h, w = int(rng.integers(2, 20)), int(rng.integers(2, 20))
+        g = g.copy()
+        g[r:r + h, c:c + w] = rng.choice(np.array([-1, 0, 100], dtype=np.int8))
+        if k % 3 == 0:
+            g[r, c:c + w] = 100  # a wall drawn in a freed patch
+        before = cm.version
+        cm.set_static(g, RES, (0.0, 0.0))
+        cost, clearance = cm.cost.copy(), cm.clearance.copy()
+        cm._inflate()  # the whole map from the layers
+        assert np.array_equal(cost, cm.cost), f"snapshot {k}: cost differs from a full inflation"
+        near = cm.clearance < cm._horizon()
+        assert np.allclose(clearance[near], cm.clearance[near]), f"snapshot {k}: clearance differs"
+        assert cm.version > before  # readers of the cost see that it changed
+    version = cm.version
+    cm.set_static(g, RES, (0.0, 0.0))  # the same map again: nothing to redo
+    assert cm.version == version

@@ -304,3 +304,39 @@ def test_gain_rate_counts_only_the_unknown_area_a_sensor_could_see() -> None:
     assert seen == pytest.approx(segment, rel=0.08)
     g[:, 118:121] = OCCUPIED  # a mapped wall in front of the unknown: nothing to see
     assert float(visible_unknown(g, RES, centre)[0]) == 0.0
+
+
+def test_a_decision_that_keeps_its_goal_measures_progress_on_the_navigators_path_and_needs_no_field() -> None:
+    # The distance field (fast marching over the whole map) is asked for only by decisions that choose; while
+    # the navigator has a path to the goal its length is the progress, and a path that stops shrinking for the
+    # progress timeout gives the goal up, as the field's distance did.
+    from homing.mapping.explorer import Explorer
+    from homing.mapping.strategies import make_strategy
+    from homing.navigation.planner import distance_map
+
+    grid = _two_openings()
+    cm = Costmap()
+    cm.update_static(grid)
+    robot = Pose2(1.0, 0.5, 0.0)
+    asked: list[float] = []
+
+    def field() -> np.ndarray:
+        asked.append(1.0)
+        return distance_map(cm, robot)
+
+    ex = Explorer(make_strategy("nearest"), progress_timeout=30.0)
+    first = ex.update(grid, robot, field, 0.0)
+    assert first.goal is not None and len(asked) == 1  # choosing needs the field
+    travel = 3.0
+    for t in range(1, 25):  # driving: the path shrinks by 0.12 m a second
+        travel -= 0.12
+        step = ex.update(grid, robot, field, float(t), travel=travel)
+        assert step.goal == first.goal and not step.done
+    assert len(asked) == 1 and ex.fields == 1  # no field while the goal is kept
+    for t in range(25, 56):  # stuck: the path no longer shrinks
+        step = ex.update(grid, robot, field, float(t), travel=travel)
+        if step.goal != first.goal:
+            break
+    assert t == 24 + 30 + 1, f"given up {t - 24} s after the last progress, not after the 30 s timeout"
+    assert step.goal != first.goal and ex.blacklist_reasons == ["no_progress"]
+    assert len(asked) == 2  # the new choice needed the field again
