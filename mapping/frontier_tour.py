@@ -156,6 +156,47 @@ def door_cells(grid: np.ndarray, resolution: float) -> np.ndarray:
     return cv2.dilate(door.astype(np.uint8), disc).astype(bool) & (grid == FREE)
 
 
+DOOR_DEPENDS = DOOR_CLEARANCE + DOOR_SPAN + DOOR_REACH + SPECK + 0.2  # [m] how far a map cell moves a door
+
+
+class Doors:
+    """:func:`door_cells` of a grid that changes a little between calls, kept up to date round what changed.
+
+    A door cell depends only on the map within ``DOOR_DEPENDS`` of it (the
+    clearance it compares, its span, its reach and a wall's speck length), so
+    when the new grid has the old one's shape, only the cells within that of
+    the box of changed cells are found again, on the map within twice that;
+    the answer is the one :func:`door_cells` gives over the whole grid. Mapping
+    changes the few metres round the robot between two decisions: on a large
+    floor this is a window, not the floor. Another shape (the grid grew) is
+    found whole.
+    """
+
+    def __init__(self) -> None:
+        self._grid: np.ndarray | None = None
+        self._doors: np.ndarray | None = None
+        self._resolution = 0.0
+
+    def __call__(self, grid: np.ndarray, resolution: float) -> np.ndarray:
+        old, doors = self._grid, self._doors
+        if old is None or doors is None or old.shape != grid.shape or resolution != self._resolution:
+            doors = door_cells(grid, resolution)
+        else:
+            changed = old != grid
+            if changed.any():
+                rows, cols = np.flatnonzero(changed.any(axis=1)), np.flatnonzero(changed.any(axis=0))
+                n = int(math.ceil(DOOR_DEPENDS / resolution))
+                h, w = grid.shape
+                a = (max(int(rows[0]) - n, 0), min(int(rows[-1]) + 1 + n, h),
+                     max(int(cols[0]) - n, 0), min(int(cols[-1]) + 1 + n, w))  # cells found again
+                b = (max(a[0] - n, 0), min(a[1] + n, h), max(a[2] - n, 0), min(a[3] + n, w))  # the map they see
+                window = door_cells(grid[b[0]:b[1], b[2]:b[3]], resolution)
+                doors = doors.copy()
+                doors[a[0]:a[1], a[2]:a[3]] = window[a[0] - b[0]:a[1] - b[0], a[2] - b[2]:a[3] - b[2]]
+        self._grid, self._doors, self._resolution = grid.copy(), doors, resolution
+        return doors
+
+
 def tour_length(order: list[int], start: np.ndarray, between: np.ndarray) -> float:
     """Length [m] of the open tour robot → ``order[0]`` → … → ``order[-1]`` (``start`` (K,) robot-to-goal,
     ``between`` (K, K) goal-to-goal distances)."""

@@ -353,6 +353,7 @@ class FrontierTravel(ExploreLite):
         self.crumb_size = crumb_size
         self.long_frontier = long_frontier
         self.tour: list[tuple[int, int]] = []  # the goals in the order of the last tour planned (for pictures)
+        self.doors = frontier_tour.Doors()  # the map's doors, kept up to date round what changed
 
     def goals(self, ctx: GoalContext, doors: np.ndarray | None = None) -> list[tuple[FrontierSegment, tuple[int, int]]]:
         """The frontiers to tour with their goals: those at least ``long_frontier`` long and the shorter ones in the
@@ -383,7 +384,7 @@ class FrontierTravel(ExploreLite):
         return []
 
     def choose(self, ctx: GoalContext) -> GoalChoice | None:
-        doors = frontier_tour.door_cells(ctx.grid, ctx.resolution)
+        doors = self.doors(ctx.grid, ctx.resolution)
         goals = self.goals(ctx, doors)
         if not goals:
             self.tour = []

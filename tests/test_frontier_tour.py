@@ -287,3 +287,29 @@ def test_the_first_goal_weighs_the_frontier_it_opens():
     start = np.array([1.0, 3.0])
     assert frontier_tour.plan((50, 100), g, RES, g == FREE, goals, start) == [0, 1]
     assert frontier_tour.plan((50, 100), g, RES, g == FREE, goals, start, lengths=np.array([0.8, 6.0])) == [1, 0]
+
+
+def test_doors_kept_up_to_date_round_what_changed_are_the_doors_of_the_whole_map():
+    # A generated 2000 m² floor mapped window by window, as a robot maps it (with a speck of noise now and then):
+    # after every window the doors kept up to date round the change are those found over the whole grid.
+    from homing.sim import load_world
+
+    truth = load_world("floor:1").map
+    res = truth.resolution
+    rng = np.random.default_rng(0)
+    grid = np.full(truth.grid.shape, UNKNOWN, np.int8)
+    doors = frontier_tour.Doors()
+    h, w = grid.shape
+    found = 0
+    for k in range(14):
+        r, c = int(rng.integers(0, h - 60)), int(rng.integers(0, w - 60))
+        size = int(rng.integers(40, 140))
+        grid = grid.copy()
+        grid[r:r + size, c:c + size] = truth.grid[r:r + size, c:c + size]
+        if k % 4 == 3:  # a speck the lidar drew in the open, or one it clears
+            grid[r + 5, c + 5] = OCCUPIED if grid[r + 5, c + 5] == FREE else grid[r + 5, c + 5]
+        kept = doors(grid, res)
+        whole = frontier_tour.door_cells(grid, res)
+        assert np.array_equal(kept, whole), f"window {k}: {int((kept != whole).sum())} cells differ"
+        found = max(found, int(whole.sum()))
+    assert found > 0  # the office's doors were found: the comparison was not of empty maps
