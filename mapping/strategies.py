@@ -301,8 +301,8 @@ def _bordering(grid: np.ndarray, free: np.ndarray) -> np.ndarray:
 
 
 def _goal_cells(ctx: GoalContext) -> np.ndarray:
-    """(N, 2) cells a goal may be moved to: reachable and not excluded."""
-    return np.argwhere(np.isfinite(ctx.distance) & ~ctx.excluded)
+    """(H, W) bool: the cells a goal may be moved to, reachable and not excluded."""
+    return np.isfinite(ctx.distance) & ~ctx.excluded
 
 
 def robot_room(ctx: GoalContext, doors: np.ndarray | None = None) -> np.ndarray:
@@ -327,17 +327,25 @@ def robot_room(ctx: GoalContext, doors: np.ndarray | None = None) -> np.ndarray:
 
 
 def _centroid_goal(seg: FrontierSegment, ctx: GoalContext, free: np.ndarray) -> tuple[int, int] | None:
-    """explore_lite's goal for a segment: its centroid, moved to the nearest of the ``free`` (N, 2) cells within
-    ``CENTROID_TOLERANCE``; None when the centroid is excluded or no such cell is near (move_base would abort
-    it and explore_lite blacklist it)."""
+    """explore_lite's goal for a segment: its centroid, moved to the nearest of the ``free`` (H, W) cells within
+    ``CENTROID_TOLERANCE`` (the first in row-major order of those as near); None when the centroid is excluded
+    or no such cell is near (move_base would abort it and explore_lite blacklist it). Only the cells within the
+    tolerance's square round the centroid are looked at, not the whole floor."""
     cr, cc = seg.centroid()
-    if ctx.excluded[int(round(cr)), int(round(cc))] or not len(free):
+    if ctx.excluded[int(round(cr)), int(round(cc))]:
         return None
-    d2 = (free[:, 0] - cr) ** 2 + (free[:, 1] - cc) ** 2
+    t = CENTROID_TOLERANCE / ctx.resolution
+    h, w = free.shape
+    r0, r1 = max(int(math.floor(cr - t)), 0), min(int(math.ceil(cr + t)) + 1, h)
+    c0, c1 = max(int(math.floor(cc - t)), 0), min(int(math.ceil(cc + t)) + 1, w)
+    near = np.argwhere(free[r0:r1, c0:c1])
+    if not len(near):
+        return None
+    d2 = (near[:, 0] + r0 - cr) ** 2 + (near[:, 1] + c0 - cc) ** 2
     j = int(np.argmin(d2))
     if math.sqrt(float(d2[j])) * ctx.resolution > CENTROID_TOLERANCE:
         return None
-    return int(free[j, 0]), int(free[j, 1])
+    return int(near[j, 0]) + r0, int(near[j, 1]) + c0
 
 
 class FrontierTravel(ExploreLite):
