@@ -332,6 +332,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_engine_arguments(parser)
     parser.add_argument("--runs-json", metavar="PATH", type=output_file("--runs-json"),
                         help="also write every run's figures to PATH (rewritten as each run finishes)")
+    parser.add_argument("--resume", action="store_true",
+                        help="with --runs-json: keep the runs that file already holds and run only the others (a "
+                             "sweep split over several sittings; the file must come from the same code)")
     parser.add_argument("--from-runs", nargs="+", metavar="PATH",
                         help="run nothing: tabulate the runs saved by earlier --runs-json (e.g. baselines and "
                              "the default run separately), filtered by --worlds/--strategies when given")
@@ -367,6 +370,18 @@ def run(args: argparse.Namespace) -> int:
         results = load_runs(args.from_runs, args.strategies, [world_label(w) for w in worlds] if args.worlds else None)
         args.seeds = len({r.seed for r in results})
         jobs = []
+    kept: list[RunResult] = []
+    if args.resume:
+        if not args.runs_json:
+            raise UserError("--resume needs --runs-json PATH (the runs to keep and add to)")
+        if Path(args.runs_json).is_file():
+            saved = load_runs([args.runs_json], list(STRATEGIES), None)
+            wanted = {(world_label(w), s, seed) for w, s, seed, *_ in jobs}
+            kept = [r for r in saved if (r.world, r.strategy, r.seed) in wanted]
+            have = {(r.world, r.strategy, r.seed) for r in kept}
+            jobs = [j for j in jobs if (world_label(j[0]), j[1], j[2]) not in have]
+            results = list(kept)
+            print(f"--resume: {len(kept)} run(s) kept from {args.runs_json}, {len(jobs)} to run")
     finished = list(results)
 
     def done(o: Any) -> None:

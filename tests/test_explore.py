@@ -340,3 +340,23 @@ def test_a_decision_that_keeps_its_goal_measures_progress_on_the_navigators_path
     assert t == 24 + 30 + 1, f"given up {t - 24} s after the last progress, not after the 30 s timeout"
     assert step.goal != first.goal and ex.blacklist_reasons == ["no_progress"]
     assert len(asked) == 2  # the new choice needed the field again
+
+
+def test_a_sweep_resumed_keeps_the_runs_its_file_holds_and_runs_only_the_others(tmp_path: Path,
+                                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from homing.missions.cli import main
+
+    runs = tmp_path / "runs.json"
+    args = ["bench", "explore", "--worlds", "lab", "--strategies", "nearest", "--minutes", "0.2", "--runs-json",
+            str(runs), "--resume"]
+    assert main([*args, "--seeds", "1"]) == 0
+    saved = json.loads(runs.read_text())
+    saved["runs"][0]["area"] = 12345.0  # marked: a run made again would not carry it
+    runs.write_text(json.dumps(saved))
+    assert main([*args, "--seeds", "2"]) == 0
+    after = {r["seed"]: r for r in json.loads(runs.read_text())["runs"]}
+    assert sorted(after) == [0, 1] and after[0]["area"] == 12345.0 and after[1]["area"] < 1000.0
+    assert "1 run(s) kept" in capsys.readouterr().out
+    assert main(["bench", "explore", "--worlds", "lab", "--resume"]) == 2  # nothing to resume from
