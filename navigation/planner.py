@@ -79,13 +79,22 @@ def traversal_weights(costmap: Costmap, cost_weight: float = COST_WEIGHT,
                       allow_unknown: bool = True) -> np.ndarray:
     """(H, W) float64 cost of crossing each cell (≥ 1), ``inf`` where the footprint does not fit."""
     c = costmap.cost
-    w = 1.0 + cost_weight * c.astype(np.float64) / MAX_NON_OBSTACLE
+    w = _weight_table(cost_weight, allow_unknown)[c]  # one lookup per cell: the cost is a byte
     # A thin band just outside the inscribed radius is crossed only when nothing else will do:
     # a path grazing the inscribed edge leaves a tracking controller no room at corners.
-    w[costmap.clearance < costmap.inscribed_radius + GRAZE_MARGIN] += GRAZE_PENALTY
-    w[c >= INSCRIBED] = np.inf
-    unknown = c == NO_INFORMATION
-    w[unknown] = (1.0 + cost_weight * UNKNOWN_COST) if allow_unknown else np.inf
+    w[(costmap.clearance < costmap.inscribed_radius + GRAZE_MARGIN) & (c < INSCRIBED)] += GRAZE_PENALTY
+    return w
+
+
+@functools.lru_cache(maxsize=16)
+def _weight_table(cost_weight: float, allow_unknown: bool) -> np.ndarray:
+    """(256,) float64: the weight of a cell by its cost byte (``inf`` where the footprint does not fit; unknown
+    cells as ``allow_unknown`` says)."""
+    c = np.arange(256, dtype=np.float64)
+    w = 1.0 + cost_weight * c / MAX_NON_OBSTACLE
+    w[INSCRIBED:] = np.inf
+    w[NO_INFORMATION] = (1.0 + cost_weight * UNKNOWN_COST) if allow_unknown else np.inf
+    w.flags.writeable = False
     return w
 
 
