@@ -228,6 +228,7 @@ class Navigator:
         self._plan_map_to_odom: Pose2 | None = None
         self._backup: BackUp | None = None  # backing off a bump
         self._external = False  # following a path given by follow(): the caller plans
+        self._path_samples: tuple[Any, np.ndarray, np.ndarray] | None = None  # _path_blocked's, for the path it had
         self._follow_yaw_tolerance = self.yaw_tolerance
 
     # -- world model -----------------------------------------------------------------------
@@ -414,10 +415,15 @@ class Navigator:
         """
         if self.path is None or len(self.path) < 2:
             return self.path is None
-        seg = np.diff(self.path, axis=0)
-        n = np.maximum(1, np.ceil(np.hypot(*seg.T) / (0.5 * self.costmap.resolution))).astype(int)
-        pts = np.concatenate([a + np.linspace(0, 1, k, endpoint=False)[:, None] * d
-                              for a, d, k in zip(self.path[:-1], seg, n, strict=True)])
+        key = (id(self.path), self.costmap.resolution)
+        if self._path_samples is None or self._path_samples[0] != key or self._path_samples[1] is not self.path:
+            # Sampled once per path (a path is replanned about once a second; this runs every tick).
+            seg = np.diff(self.path, axis=0)
+            n = np.maximum(1, np.ceil(np.hypot(*seg.T) / (0.5 * self.costmap.resolution))).astype(int)
+            samples = np.concatenate([a + np.linspace(0, 1, k, endpoint=False)[:, None] * d
+                                      for a, d, k in zip(self.path[:-1], seg, n, strict=True)])
+            self._path_samples = (key, self.path, samples)
+        pts = self._path_samples[2]
         pts = pts[np.hypot(pts[:, 0] - pose.x, pts[:, 1] - pose.y) > ESCAPE_RADIUS]
         cost = self.costmap.cost_at(pts)
         blocked = cost >= INSCRIBED
