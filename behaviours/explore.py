@@ -74,13 +74,18 @@ DECIDE_PERIOD = 1.0  # [s] adapter time between decisions while driving (strateg
 GOAL_REASONS = ("no_path", "goal_occupied", "bumped")  # the goal's fault (bumped: TooManyBumps near it): blacklist it and go on
 START_PATIENCE = 3.0  # [s] the robot's cell may be blocked on the costmap this long before the leaf fails
 NO_FRONTIER_PERIOD = 2.0  # [s] NoFrontierLeft recomputes at most this often on a changing grid
+FIELD_BLOCK = 0.2  # [m] the travel-distance field's distances are marched on blocks this big (reach: every cell)
 
 
 def distance_field(navigator: Any, grid: Any, pose: Pose2) -> np.ndarray | None:
-    """Travel distance [m] (H, W) from ``pose`` on the navigator's costmap, or None if it does not match ``grid`` yet."""
+    """Travel distance [m] (H, W) from ``pose`` on the navigator's costmap, or None if it does not match ``grid`` yet.
+
+    Reachable cells exactly, distances marched on ``FIELD_BLOCK`` blocks (:func:`distance_map`'s ``coarse``):
+    strategies rank frontiers metres apart, and a march over every 5 cm cell of a large floor is the
+    costliest part of a decision."""
     if navigator.costmap.shape != grid.shape:
         return None
-    return distance_map(navigator.costmap, pose, allow_unknown=False)
+    return distance_map(navigator.costmap, pose, allow_unknown=False, coarse=FIELD_BLOCK)
 
 
 class _StartBlocked(Exception):

@@ -105,6 +105,30 @@ def test_distance_map_is_euclidean_in_the_open_and_inf_where_unreachable() -> No
     assert np.all(np.isinf(d[cm.cost >= 253]))  # where the footprint does not fit
 
 
+def test_distance_map_on_blocks_keeps_every_cell_it_reaches_and_goes_round_thin_walls() -> None:
+    # Two rooms side by side behind a one-cell wall (5 cm) with a 1 m door at its far end: marched on 0.2 m
+    # blocks, the distance from one side to the cell just across the wall is still the way round through the
+    # door (a block never joins the two sides: the footprint leaves a 0.45 m band along the wall), the set
+    # of reachable cells is the fine march's to the cell, and every distance is within a block of the fine one.
+    cm = Costmap()
+    g = np.zeros((120, 200), dtype=np.int8)
+    g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = 100
+    g[:100, 100] = 100  # the wall between the rooms, open above y = 5 m (a 1 m door up to the outer wall)
+    cm.set_static(g, RES, (0.0, 0.0))
+    start = (3.0, 1.0)
+    fine, coarse = distance_map(cm, start), distance_map(cm, start, coarse=0.2)
+    assert np.array_equal(np.isfinite(fine), np.isfinite(coarse))
+    ok = np.isfinite(fine)
+    assert np.abs(coarse[ok] - fine[ok]).max() <= 0.2 * math.sqrt(2)
+    across = cm.world_to_cell(np.array([[5.35, 1.0]]))[0]  # 0.3 m right of the wall, level with the start
+    way_round = (5.0 - 1.0) + 0.3 + (5.0 - 1.0)  # up to the door, through, and back down [m], at least
+    assert coarse[across[0], across[1]] >= way_round
+    # The distances grow cell by cell in the open (no steps a block wide): along the start's row.
+    row = cm.world_to_cell(np.array([[3.0, 1.0]]))[0][0]
+    line = coarse[row, 70:95]
+    assert np.all(np.diff(line) > 0.0)  # block by block, three cells in four would repeat their neighbour
+
+
 def test_distance_map_does_not_change_with_an_unknown_margin_round_the_map() -> None:
     # A growing map is mostly unknown margin, so fast marching runs only over the box of open cells. A free
     # cell alone in two of the margin's corners (reached by nothing) makes that box the whole grid: the

@@ -107,6 +107,7 @@ def strategy_panel(grid, name: str, robot, seed: int = 0, scale: int = 0):  # no
     """(BGR image with a title band, one summary line) for one strategy's choice on ``grid`` from ``robot``."""
     import cv2
     import numpy as np
+    from homing.behaviours.explore import FIELD_BLOCK
     from homing.mapping.explorer import Explorer
     from homing.mapping.render import render_grid
     from homing.mapping.strategies import make_strategy
@@ -115,7 +116,7 @@ def strategy_panel(grid, name: str, robot, seed: int = 0, scale: int = 0):  # no
 
     costmap = Costmap()
     costmap.update_static(grid)
-    distance = distance_map(costmap, robot, allow_unknown=False)
+    distance = distance_map(costmap, robot, allow_unknown=False, coarse=FIELD_BLOCK)  # as the Explore leaf
     explorer = Explorer(make_strategy(name), np.random.default_rng(seed))
     step = explorer.update(grid, robot, distance, 0.0)
     choice = step.choice
