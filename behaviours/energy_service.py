@@ -44,7 +44,7 @@ from homing.lifecycle.energy import (
     must_go_home,
     reserve,
 )
-from homing.navigation.planner import distance_map
+from homing.navigation.planner import FIELD_BLOCK, distance_map
 from homing.robot import ChargingState, Observation, Pose2, RobotAdapter
 from py_trees.common import Access, Status
 
@@ -154,7 +154,7 @@ class EnergyService:
         # The field from home only changes with the costmap and home: reuse it until either moves.
         key = (nav.costmap.shape, nav.costmap.origin, round(home.x, 2), round(home.y, 2), nav.costmap.version // 200)
         if key != self._field_key:
-            self._field = distance_map(nav.costmap, home, allow_unknown=False)
+            self._field = distance_map(nav.costmap, home, allow_unknown=False, coarse=FIELD_BLOCK)
             self._field_key = key
         rc = nav.costmap.world_to_cell([[pose.x, pose.y]])[0]
         h, w = self._field.shape

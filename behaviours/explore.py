@@ -65,7 +65,7 @@ from homing.mapping.explorer import REACH_RADIUS, Explorer, ExploreStep
 from homing.mapping.reachable import frontier_report
 from homing.mapping.strategies import DEFAULT_STRATEGY, STRATEGIES, make_strategy
 from homing.navigation.navigator import NavStatus
-from homing.navigation.planner import distance_map
+from homing.navigation.planner import FIELD_BLOCK, distance_map
 from homing.robot import Pose2
 from py_trees.common import Status
 
@@ -74,7 +74,6 @@ DECIDE_PERIOD = 1.0  # [s] adapter time between decisions while driving (strateg
 GOAL_REASONS = ("no_path", "goal_occupied", "bumped")  # the goal's fault (bumped: TooManyBumps near it): blacklist it and go on
 START_PATIENCE = 3.0  # [s] the robot's cell may be blocked on the costmap this long before the leaf fails
 NO_FRONTIER_PERIOD = 2.0  # [s] NoFrontierLeft recomputes at most this often on a changing grid
-FIELD_BLOCK = 0.2  # [m] the travel-distance field's distances are marched on blocks this big (reach: every cell)
 
 
 def distance_field(navigator: Any, grid: Any, pose: Pose2) -> np.ndarray | None:

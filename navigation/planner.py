@@ -47,6 +47,7 @@ GRAZE_MARGIN = 0.05  # [m] band beyond the inscribed radius that paths avoid
 GRAZE_PENALTY = 2.0  # extra traversal cost of a cell in that band
 SMOOTHING_PASSES = 4  # string-pulling passes (see smooth_path)
 SOURCE_RADIUS = 0.75  # [cells] fast marching starts from a circle this wide around the source
+FIELD_BLOCK = 0.2  # [m] blocks the decision-time distance fields march on (distance_map's coarse; reach: every cell)
 
 
 class PlanningError(Exception):

@@ -107,12 +107,11 @@ def strategy_panel(grid, name: str, robot, seed: int = 0, scale: int = 0):  # no
     """(BGR image with a title band, one summary line) for one strategy's choice on ``grid`` from ``robot``."""
     import cv2
     import numpy as np
-    from homing.behaviours.explore import FIELD_BLOCK
     from homing.mapping.explorer import Explorer
     from homing.mapping.render import render_grid
     from homing.mapping.strategies import make_strategy
     from homing.navigation.costmap import Costmap
-    from homing.navigation.planner import PlanningError, distance_map, make_planner
+    from homing.navigation.planner import FIELD_BLOCK, PlanningError, distance_map, make_planner
 
     costmap = Costmap()
     costmap.update_static(grid)
