@@ -34,7 +34,9 @@ left are places it gave up before it looked (no progress, unreachable, cut
 off), exploration is **incomplete**: FAILURE ``incomplete`` with the same
 report, ``/explore/explored`` stays False, and the next start of the leaf
 (a recovery round, or the persistent mission's next round) tries them
-again, up to ``RETRY_ROUNDS`` times each (:meth:`Explorer.forgive`). Frontiers it could reach but the costmap cuts off end the leaf
+again, up to ``RETRY_ROUNDS`` times each (:meth:`Explorer.forgive`); then, measured on
+the map, a place behind a way narrower than the robot is given up for good, and one the robot fits the way
+to is deferred to a later round (:meth:`Explorer.new_round`). Frontiers it could reach but the costmap cuts off end the leaf
 with FAILURE ``frontier_cut_off`` (or ``frontier_not_cleared``) for the
 recoveries; after a round of them those frontiers are given up.
 """
@@ -149,8 +151,10 @@ class Explore(_ReportsFailure):
         self.navigator = self.read(NAVIGATOR_KEY)
         if self.navigator is None:
             return self.fail("no_navigator", "no navigation service (add 'navigation' to services)")
-        if self.incomplete and self.explorer is not None:
-            self.explorer.forgive()  # a later round, after a recovery: every place given up is tried again
+        if self.explorer is not None:
+            # A later round (after a recovery, the persistent mission's next): after an incomplete end every place
+            # given up is tried again, and places deferred to this round are, whatever the end.
+            self.explorer.new_round(self.read(GRID_KEY), self.read(POSE_KEY), self.incomplete)
         self.incomplete = False
         self._explorer()
         self._next_decision = -math.inf

@@ -31,8 +31,10 @@ robot stood at them and looked (``not_cleared``: the lidar cannot see in).
 Frontiers given up before it looked (no progress, unreachable, cut off…):
 done *incomplete* (``ExploreStep.gave_up`` > 0) — the caller reports it as
 such, not as explored, and may :meth:`Explorer.forgive` them to try again;
-a place given up again on ``RETRY_ROUNDS`` retry rounds is given up for
-good, its reason saying so, and no longer keeps exploration incomplete.
+a place given up again on ``RETRY_ROUNDS`` retry rounds no longer keeps
+exploration incomplete: measured on the map, a way to it narrower than the
+robot gives it up for good (the reason gives the width), one the robot
+fits defers it to a later round (after 2, 4, 8… more rounds).
 
 A site the costmap still reaches but the strategy declined (too small for its rule) is
 visited anyway: the robot stands against it, or for a door seen only at a
@@ -59,7 +61,9 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from homing.mapping.frontier import OCCUPIED_AT
 from homing.mapping.grid import OccupancyGrid
+from homing.mapping.navigable import way_in
 from homing.mapping.reachable import (
     PEEK,
     FrontierReport,
@@ -127,6 +131,9 @@ class Explorer:
         self.goals_chosen = 0
         self.retries = 0  # times the places given up were tried again (forgive)
         self.rounds: list[tuple[float, float, int]] = []  # (x, y) [m] of places forgiven and how many times
+        self.round = 0  # starts of exploration after the first (new_round)
+        self.deferred: dict[tuple[float, float], int] = {}  # places given up on every retry round the robot fits
+        # the way to, and the round they are tried again in
         self._best_distance = math.inf
         self._best_travel = math.inf  # the navigator's path length to the goal, the least so far [m]
         self._last_progress = 0.0
@@ -154,12 +161,15 @@ class Explorer:
             self._blacklist(float(p[0]), float(p[1]), reason)
             todo &= np.hypot(xy[:, 0] - p[0], xy[:, 1] - p[1]) > 0.9 * self.blacklist_radius
 
-    def forgive(self) -> int:
+    def forgive(self, grid: OccupancyGrid | None = None, pose: Pose2 | None = None) -> int:
         """Try again every place given up before the robot looked at it (a later round, after the costmap was
         cleared): they leave the blacklist; returns how many. Places looked at from where they are
-        (``not_cleared``) stay given up, as does a place given up again on each of ``RETRY_ROUNDS`` rounds:
-        then for good, its reason saying so (``no_path, 3 rounds``); gaps narrower than the robot are measured
-        on the map each time."""
+        (``not_cleared``) stay given up. A place given up again on each of ``RETRY_ROUNDS`` rounds is measured on
+        ``grid`` (walls alone block): if the widest way to it from ``pose`` is narrower than the robot, it is given
+        up for good, the reason saying so and how wide (``no_path, 3 rounds; way in 0.34 m, narrower than the
+        robot``); if the robot fits, it is deferred — tried again after 2, 4, 8… more rounds
+        (:meth:`new_round`), its reason saying when — and no longer keeps exploration incomplete meanwhile.
+        Without a grid, it is given up for good after ``RETRY_ROUNDS``."""
         keep, forgiven = [], 0
         for (x, y), why in zip(self.blacklist, self.blacklist_reasons, strict=True):
             if settled(why):
@@ -173,13 +183,50 @@ class Explorer:
             else:
                 self.rounds[past] = (x, y, n)
             if n > RETRY_ROUNDS:
-                keep.append(((x, y), f"{why}, {n} rounds"))
+                keep.append(((x, y), self._for_good(x, y, why, n, grid, pose)))
             else:
                 forgiven += 1
         self.blacklist = [p for p, _ in keep]
         self.blacklist_reasons = [why for _, why in keep]
         self.cut_offs, self.goal, self.choice, self._declined = 0, None, None, None
         self.retries += 1
+        return forgiven
+
+    def _for_good(self, x: float, y: float, why: str, n: int, grid: OccupancyGrid | None,
+                  pose: Pose2 | None) -> str:
+        """The reason a place given up on every retry round keeps (see :meth:`forgive`); records a deferral."""
+        reason = f"{why}, {n} rounds"
+        if grid is None or pose is None:
+            return reason
+        res = grid.resolution
+        h, w = grid.shape
+        sr, sc = grid.world_to_cell(pose.x, pose.y)
+        start = (int(np.clip(sr, 0, h - 1)), int(np.clip(sc, 0, w - 1)))
+        rows, cols = np.ogrid[:h, :w]
+        pr, pc = grid.world_to_cell(x, y)
+        place = (rows - int(pr)) ** 2 + (cols - int(pc)) ** 2 <= (self.blacklist_radius / res) ** 2
+        width, fits = way_in(grid.data < OCCUPIED_AT, res, start, place, self.robot_radius)
+        if not fits:
+            return f"{reason}; way in {width:.2f} m, narrower than the robot"
+        due = self.round + 2 ** (n - RETRY_ROUNDS)
+        self.deferred[(x, y)] = due
+        return f"{reason}; the robot fits the way in: tried again in round {due}"
+
+    def new_round(self, grid: OccupancyGrid | None = None, pose: Pose2 | None = None,
+                  incomplete: bool = False) -> int:
+        """A new start of exploration (a recovery round, the persistent mission's next round): after an
+        incomplete end every place given up is tried again (:meth:`forgive`), and places deferred to this round
+        are, whatever the end; returns how many were forgiven."""
+        self.round += 1
+        forgiven = self.forgive(grid, pose) if incomplete else 0
+        due = {p for p, r in self.deferred.items() if r <= self.round}
+        if due:
+            kept = [(p, why) for p, why in zip(self.blacklist, self.blacklist_reasons, strict=True) if p not in due]
+            forgiven += len(self.blacklist) - len(kept)
+            self.blacklist = [p for p, _ in kept]
+            self.blacklist_reasons = [why for _, why in kept]
+            self.deferred = {p: r for p, r in self.deferred.items() if p not in due}
+            self.cut_offs, self.goal, self.choice, self._declined = 0, None, None, None
         return forgiven
 
     def given_up(self) -> tuple[GivenUp, ...]:
@@ -359,9 +406,10 @@ class Explorer:
 
 
 def settled(reason: str) -> bool:
-    """Whether a place given up for ``reason`` is given up for good: the robot looked at it from where it is, or
-    it was given up again on every retry round (:meth:`Explorer.forgive`)."""
-    return reason == LOOKED_AT or reason.endswith(" rounds")
+    """Whether a place given up for ``reason`` no longer keeps exploration incomplete: the robot looked at it from
+    where it is, or it was given up again on every retry round (:meth:`Explorer.forgive`: for good, or deferred to
+    a later round)."""
+    return reason == LOOKED_AT or " rounds" in reason
 
 
 def _beside(distance: np.ndarray, robot_radius: float, resolution: float) -> np.ndarray:

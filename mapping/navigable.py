@@ -131,6 +131,21 @@ def navigable(free: np.ndarray, resolution: float, origin: tuple[float, float], 
     return Navigable(mask, region, float(mask.sum()) * resolution**2, tuple(blocked))
 
 
+def way_in(free: np.ndarray, resolution: float, start: tuple[int, int], place: np.ndarray,
+           robot_radius: float = FOOTPRINT_RADIUS) -> tuple[float, bool]:
+    """The widest way from the cell ``start`` (row, col) to the cells ``place`` (H, W) bool through ``free``
+    (H, W) bool cells: its width [m], wall to wall, and whether the robot fits through it by the module's rule
+    (then the width is only known to be at least the robot's: the search stops there)."""
+    fits = free & centre_fits(~free, resolution, robot_radius)
+    if not fits.any() or not (place & free).any():
+        return 0.0, False
+    r_cells = inscribed_radius(resolution, robot_radius) / resolution
+    clearance = distance_cells(free)  # [cells] to the nearest cell that is not free
+    t = _bottleneck(clearance, _component_at(fits, start), place & free, r_cells)
+    wide = bool(_component_at(fits, start)[place].any())
+    return max(0.0, (2.0 * t - 0.5) * resolution), wide
+
+
 def _component_at(mask: np.ndarray, cell: tuple[int, int]) -> np.ndarray:
     """(H, W) bool: the 8-connected component of ``mask`` holding ``cell``, else the one nearest to it."""
     _, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)

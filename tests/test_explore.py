@@ -178,7 +178,8 @@ def test_explore_that_gave_up_reachable_frontiers_ends_incomplete_and_tries_them
     assert _tick(leaf, robot) == Status.RUNNING
     assert len(nav.goals) == tried + 1 and leaf.explorer.retries == 1
     assert "tried again 1×" in (leaf.end_report() or "")
-    # Given up again on every retry round, the places are given up for good, saying so, and that is the end.
+    # Given up again on every retry round, the places no longer keep exploration incomplete: the robot fits the
+    # way to them on the map, so they are deferred to a later round, saying so, and that is the end of this one.
     from homing.mapping.explorer import RETRY_ROUNDS
 
     incompletes, status = 1, Status.RUNNING
@@ -187,8 +188,19 @@ def test_explore_that_gave_up_reachable_frontiers_ends_incomplete_and_tries_them
         if status == Status.SUCCESS:
             break
         incompletes += status == Status.FAILURE and leaf.failure_reason == "incomplete"
-    assert status == Status.SUCCESS and incompletes == RETRY_ROUNDS + 1, (incompletes, leaf.feedback_message)
-    assert f"no_path, {RETRY_ROUNDS + 1} rounds" in leaf.feedback_message and bb.get("/explore/explored") is True
+    assert status == Status.SUCCESS and incompletes >= RETRY_ROUNDS + 1, (incompletes, leaf.feedback_message)
+    assert f"no_path, {RETRY_ROUNDS + 1} rounds; the robot fits the way in: tried again in round" in \
+        leaf.feedback_message and bb.get("/explore/explored") is True
+    # Later rounds (each a new start of the leaf): nothing is tried before the first deferred place's round,
+    # and it is tried then.
+    ex = leaf.explorer
+    due = min(ex.deferred.values())
+    tried = len(nav.goals)
+    while ex.round < due - 1:
+        assert _tick(leaf, robot) == Status.SUCCESS  # started again: at once explored, nothing tried
+    assert len(nav.goals) == tried
+    _tick(leaf, robot)
+    assert ex.round == due and len(nav.goals) == tried + 1
 
 
 def test_explore_succeeds_when_no_frontier_is_left_and_the_condition_agrees() -> None:
@@ -360,3 +372,31 @@ def test_a_sweep_resumed_keeps_the_runs_its_file_holds_and_runs_only_the_others(
     assert sorted(after) == [0, 1] and after[0]["area"] == 12345.0 and after[1]["area"] < 1000.0
     assert "1 run(s) kept" in capsys.readouterr().out
     assert main(["bench", "explore", "--worlds", "lab", "--resume"]) == 2  # nothing to resume from
+
+
+@pytest.mark.parametrize(("gap", "fits"), [(0.30, False), (0.80, True)])
+def test_a_place_given_up_on_every_retry_round_is_measured_on_the_map(gap: float, fits: bool) -> None:
+    # A place given up again on every retry round: measured on the map from the robot, a way in narrower than the
+    # robot gives it up for good, saying how wide; one the robot fits defers it to a later round.
+    from homing.mapping.explorer import RETRY_ROUNDS, Explorer, settled
+    from homing.mapping.strategies import make_strategy
+
+    g = np.full((80, 160), FREE, dtype=np.int8)
+    g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = OCCUPIED
+    g[:, 80] = OCCUPIED  # a wall across, with a gap
+    half = int(round(gap / RES / 2))
+    g[40 - half:40 + half, 80] = FREE
+    grid = OccupancyGrid.from_map_data(MapData(g, RES, (0.0, 0.0, 0.0)))
+    ex = Explorer(make_strategy("nearest"))
+    place = (6.0, 2.0)  # beyond the wall
+    ex.blacklist, ex.blacklist_reasons = [place], ["no_path"]
+    ex.rounds = [(place[0], place[1], RETRY_ROUNDS)]
+    ex.forgive(grid, Pose2(1.0, 2.0, 0.0))
+    (why,) = ex.blacklist_reasons
+    assert settled(why) and why.startswith(f"no_path, {RETRY_ROUNDS + 1} rounds")
+    if fits:
+        assert "the robot fits the way in: tried again in round" in why and ex.deferred
+    else:
+        width = float(why.split("way in ")[1].split(" m")[0])
+        assert "narrower than the robot" in why and not ex.deferred
+        assert width == pytest.approx(gap, abs=2 * RES)
