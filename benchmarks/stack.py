@@ -22,8 +22,8 @@ world:
   simulated second over the first world's.
 
 Issue 36's targets: the stack at ≥ 50× real time on a generated office and
-≥ 20× on a 2000 m² floor, one core. Run: ``homing bench stack [--worlds lab
-office:1 floor:1] [--minutes 5] [--json PATH]``.
+≥ 20× on a 2000 m² floor, one core. Run:
+``homing bench stack [--worlds lab office:1 floor:1] [--minutes 5]``.
 """
 
 from __future__ import annotations
