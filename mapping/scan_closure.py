@@ -111,7 +111,8 @@ def merge(references: Sequence[Reference], poses: Sequence[Pose2]) -> Reference:
 
 def match(ref: Reference, points: np.ndarray, guess: Pose2, position: bool = True,
           max_rms: float = MAX_RMS, gates: tuple[float, ...] = GATES, min_overlap: float = MIN_OVERLAP,
-          min_iterations: int = MIN_ITERATIONS, converged: float = CONVERGED) -> Match | None:
+          min_iterations: int = MIN_ITERATIONS, converged: float = CONVERGED,
+          floor: tuple[float, float] = SIGMA_MIN) -> Match | None:
     """Pose of the frame of ``points`` (M, 2) [m] in ``ref``'s frame, starting from ``guess``; None if it fails.
 
     Gauss–Newton on point-to-line distances with Huber weights, the
@@ -123,7 +124,8 @@ def match(ref: Reference, points: np.ndarray, guess: Pose2, position: bool = Tru
     the covariance frees both position axes (a heading-only closure).
     ``min_iterations``: steps before convergence counts, ``converged``
     [m, rad] the step that counts as converged (fewer and coarser for a
-    refinement from a pose already within a few centimetres).
+    refinement from a pose already within a few centimetres); ``floor``
+    ([m], [rad]) the covariance's floors (see :func:`covariance`).
     """
     if len(ref.points) < MIN_PAIRS or len(points) < MIN_PAIRS:
         return None
@@ -151,7 +153,7 @@ def match(ref: Reference, points: np.ndarray, guess: Pose2, position: bool = Tru
     overlap = float(ok.mean())
     if rms > max_rms or overlap < min_overlap:
         return None
-    return Match(Pose2(float(x[0]), float(x[1]), float(x[2])), covariance(J, rms, position), rms, overlap)
+    return Match(Pose2(float(x[0]), float(x[1]), float(x[2])), covariance(J, rms, position, floor), rms, overlap)
 
 
 def covariance_at(ref: Reference, points: np.ndarray, pose: Pose2, gate: float = GATES[-1]) -> np.ndarray | None:
@@ -175,20 +177,24 @@ def covariance_at(ref: Reference, points: np.ndarray, pose: Pose2, gate: float =
     return covariance(J, float(np.sqrt(np.mean(r**2))))
 
 
-def covariance(J: np.ndarray, rms: float, position: bool = True) -> np.ndarray:
+def covariance(J: np.ndarray, rms: float, position: bool = True,
+               floor: tuple[float, float] = SIGMA_MIN) -> np.ndarray:
     """(3, 3) covariance of a match from its (K, 3) residual Jacobian, floored, with degenerate position axes freed.
 
-    ``position`` False frees both position axes. The heading–position cross
+    ``position`` False frees both position axes. ``floor`` ([m], [rad]): the
+    σ below which no position axis and no heading is claimed (default
+    ``SIGMA_MIN``; a short match between neighbouring keyframes, whose
+    errors were measured, may be given that measured floor instead). The heading–position cross
     terms are dropped: a freed axis would otherwise drag the heading's
     variance with it.
     """
-    cov = max(rms, SIGMA_MIN[0]) ** 2 * np.linalg.inv(J.T @ J)
+    cov = max(rms, SIGMA_MIN[0]) ** 2 * np.linalg.inv(J.T @ J)  # the residual's σ: the lidar's noise at least
     w, v = np.linalg.eigh(cov[:2, :2])
     sigma = np.sqrt(np.maximum(w, 0.0))
-    sigma = np.where((sigma > DEGENERATE) | (not position), FREE_SIGMA, np.maximum(sigma, SIGMA_MIN[0]))
+    sigma = np.where((sigma > DEGENERATE) | (not position), FREE_SIGMA, np.maximum(sigma, floor[0]))
     out = np.zeros((3, 3))
     out[:2, :2] = v @ np.diag(sigma**2) @ v.T
-    out[2, 2] = max(float(cov[2, 2]), SIGMA_MIN[1] ** 2)
+    out[2, 2] = max(float(cov[2, 2]), floor[1] ** 2)
     return out
 
 
