@@ -16,15 +16,17 @@ there is 10–30 cm (measured on ``homing bench slam``'s loop world: matches
 whose weaker position direction has σ > ``DEGENERATE`` all slid along a
 corridor). Such a direction is given ``FREE_SIGMA``: the closure then fixes
 the heading and the across-corridor offset only, which it measures to
-≈ 0.02° and ≈ 1 cm. :class:`~homing.mapping.landmark_slam.LandmarkSlam`
-keeps only the heading by default (``position=False``): on the loop world's
-30-minute runs, position closures — even the non-degenerate ones, each
-right to ~1 cm against the truth — left the map worse than heading-only
-ones (2.2–8.3 cm vs 1.8–3.5 cm mean per tag over four recorded runs),
-pulling whole corridors along their axis against the tags' sightings.
+≈ 0.02° and ≈ 1 cm.
 
 Frames: points are (N, 2) arrays in a keyframe's ``base_link`` [m]; a match
-returns the current keyframe's pose in the old one's frame. Not for: scans
+returns the current keyframe's pose in the old one's frame, and its
+covariance is in the old one's frame too. A GTSAM ``BetweenFactorPose2``
+measures its error in the *measured* pose's frame, so the covariance must
+be rotated by the match's heading first
+(:func:`homing.mapping.landmark_slam.lidar_factor`): used unrotated, a
+corridor's free axis and its tight one swap when the two passes cross at an
+angle, and position closures pulled whole corridors along their axis (why
+landmark SLAM once kept only their heading). Not for: scans
 from far-apart places (no global search: the guess must be within ~0.3 m
 and ~10°), or worlds of bare parallel walls only (every match degenerate).
 """
