@@ -85,7 +85,12 @@ class TagSlamService:
     def __init__(self, tag_size: float = 0.16, dock_tag: int = 0, keyframe_distance: float = 0.25,
                  keyframe_angle: float = 0.35, robust: str = "cauchy", max_range: float = 3.0,
                  resolution: float = 0.05, grid: bool = True, image_rate: float = 0.0) -> None:
-        from homing.mapping.landmark_slam import CLOSURE_RADIUS, LandmarkSlam, SlamConfig
+        from homing.mapping.landmark_slam import (
+            CLOSURE_RADIUS,
+            SCAN_LINKS,
+            LandmarkSlam,
+            SlamConfig,
+        )
         from homing.perception.apriltag import TagDetector, TagFilter
         from homing.perception.tag_wall import TagPerception
 
@@ -95,8 +100,8 @@ class TagSlamService:
             keyframe_distance=keyframe_distance, keyframe_angle=keyframe_angle, robust=robust,
             anchor_tag=None if dock_tag < 0 or not grid else dock_tag,
             # Tags only: the grid's mapper keeps the headings consistent (the keyframes are tied to its poses),
-            # so the lidar closures would only cost time.
-            closure_radius=CLOSURE_RADIUS if grid else 0.0,
+            # so the lidar closures and links would only cost time.
+            closure_radius=CLOSURE_RADIUS if grid else 0.0, scan_links=SCAN_LINKS if grid else (),
         )
         self.slam = LandmarkSlam(self.config)
         self.owns_grid = grid

@@ -19,13 +19,25 @@ centre and face heading in ``map``). Factors:
   wall behind the tag (:mod:`homing.perception.tag_wall`) keeps its own σ;
 - a tight prior on the dock's tag when it is first seen: the map's anchor,
   which every return to the dock re-observes;
-- lidar loop closures (:mod:`homing.mapping.scan_closure`): when a new
-  keyframe (every ``closure_every``-th) comes within ``closure_radius`` of
-  an old one, their scans are matched (point-to-line ICP) and their
-  relative heading (by default; the position too with ``closure_position``)
-  is a robust between factor — the walls keep the heading of the stretches
-  between tags, which only odometry linked, consistent with every earlier
-  pass (on the loop world a 20 m map otherwise turned ~0.2° about the dock);
+- lidar links (:mod:`homing.mapping.scan_closure`): each new keyframe's
+  scan is matched (point-to-line ICP from the odometry guess) to the last
+  keyframe's scan and, every 4th keyframe, to the scan 4 keyframes back
+  (``scan_links``), and each match is a robust between factor. Measured on ``homing bench slam``'s
+  recorded runs, these matches are right to ≈ 3 mm and 0.02–0.03° per
+  keyframe where the walls pin both axes, against 7.5 mm and 0.035°
+  (biased) for the wheels and gyro: the lidar, not the odometry, carries
+  the map between tags. A corridor's axis, which a match cannot see, is
+  left free (``scan_closure.DEGENERATE``) and odometry keeps it;
+- lidar loop closures: when a new keyframe (every ``closure_every``-th)
+  comes within ``closure_radius`` of an old one, their scans are matched
+  and the relative pose (heading only with ``closure_position=False``) is
+  a robust between factor — the walls keep the stretches between tags,
+  which only odometry linked, consistent with every earlier pass.
+  A match's covariance is in the *old* keyframe's frame and GTSAM's
+  between error in the measured pose's frame, so it is rotated by the
+  match's heading before use: unrotated, a corridor's free axis and its
+  tight one swapped whenever the two passes crossed at an angle, and
+  position closures bent the map (why they were once heading-only);
 - optionally, the scan-matched motion between consecutive keyframes (the
   grid SLAM's corrected pose, ``matched``) as a second, robust between
   factor: the lidar keeps the chain straight between tags, the tags close
@@ -34,7 +46,8 @@ centre and face heading in ``map``). Factors:
 Association is by tag id. A new keyframe starts every ``keyframe_distance``
 metres or ``keyframe_angle`` radians of odometry; tag sightings in between
 are carried to the current keyframe through odometry (interpolated at the
-image's stamp) and the best-conditioned one per tag is kept. Each keyframe
+image's stamp) and averaged per tag (:func:`fuse_sightings`), weighted as
+the best-conditioned one. Each keyframe
 keeps its scan, so the occupancy grid can be rebuilt from optimised poses.
 The map → odom correction is the latest keyframe's optimised pose composed
 with the inverse of its odometry pose.
@@ -42,7 +55,7 @@ with the inverse of its odometry pose.
 Cost per keyframe is bounded: one iSAM2 update with a handful of factors,
 relinearisation checked every ``relinearize_skip`` updates, and only the
 latest pose and the landmarks read back; a closure attempt adds one scan
-match (~3.5 ms) and a loop for iSAM2 to re-eliminate. Not for: ambiguous (non-unique)
+match (~3.5 ms) and a loop for iSAM2 to re-eliminate; the lidar links two short matches (~3 ms each). Not for: ambiguous (non-unique)
 tag ids, or 3-D motion.
 """
 
@@ -89,6 +102,16 @@ CLOSURE_EVERY = 3  # keyframes between closure attempts: as accurate as every on
 # 30-min runs (3.5 ± 0.5 cm mean per tag either way) at 1/7 of the iSAM2 update time (median 0.27 vs 1.8 ms)
 ODOM_HISTORY = 5.0  # [s] odometry kept to place an image's sightings at its stamp
 CLOSURE_MIN_POINTS = 30  # returns both scans need for a lidar closure to be tried
+# Keyframes back whose scans a new keyframe's scan is matched to: the last one, and every 4th keyframe the one
+# 4 back (1 m, fewer steps for the heading to wander). A link from *every* keyframe 4 back was as accurate but
+# cost 10-25x the iSAM2 update time over a 30-min explore run (its band of factors widens every clique).
+SCAN_LINKS = (1, 4)
+# Floors of a link's σ: its measured error (3.2 mm and 0.02-0.03° RMS per keyframe over four recorded bench
+# slam runs, lab and loop world, where the match was not degenerate); the lidar-noise floor of a closure
+# (scan_closure.SIGMA_MIN, 1 cm and 0.1°) would give the lidar less weight than the wheels.
+SCAN_LINK_SIGMA_MIN = (0.003, math.radians(0.03))  # [m, rad]
+SCAN_LINK_GATES = (0.2, 0.1)  # [m] correspondence gates of a link's match: the odometry guess is within ~2 cm
+SCAN_LINK_ITERATIONS = 6  # steps before a link's match may count as converged
 
 
 def X(i: int) -> int:
@@ -129,7 +152,8 @@ class SlamConfig:
     closure_radius: float = CLOSURE_RADIUS  # [m]
     closure_min_gap: int = CLOSURE_MIN_GAP
     closure_every: int = CLOSURE_EVERY
-    closure_position: bool = False  # lidar closures constrain position too, not only heading (see scan_closure)
+    closure_position: bool = True  # lidar closures constrain position too, not only heading (see scan_closure)
+    scan_links: tuple[int, ...] = SCAN_LINKS  # keyframes back a new scan is matched to (b > 1: every b-th); () none
 
 
 @dataclass
@@ -152,6 +176,31 @@ class Keyframe:
 class _Sighting:
     rel: Pose2  # tag seen from the keyframe
     cov: np.ndarray  # (3, 3) x, y, theta in the keyframe's frame
+    others: list[tuple[Pose2, np.ndarray]] = field(default_factory=list)  # every sighting of it on this keyframe
+
+
+def fuse_sightings(sightings: list[tuple[Pose2, np.ndarray]]) -> Pose2:
+    """The information-weighted mean of one tag's sightings (pose, (3, 3) covariance) from one keyframe.
+
+    Position by the inverse of each (2, 2) position covariance, heading by
+    1/σ² about the first one's (a corner heading, σ ~ 0.5 rad, hardly
+    counts beside a wall's, ~0.3°). A robot standing before a tag sees it
+    in every frame: the mean uses them all, where keeping only the
+    best-conditioned one threw the others away.
+    """
+    ref = sightings[0][0].theta
+    info = np.zeros((2, 2))
+    vec = np.zeros(2)
+    w_th = d_th = 0.0
+    for rel, cov in sightings:
+        inv = np.linalg.inv(cov[:2, :2])
+        info += inv
+        vec += inv @ np.array([rel.x, rel.y])
+        w = 1.0 / max(float(cov[2, 2]), 1e-12)
+        w_th += w
+        d_th += w * wrap_angle(rel.theta - ref)
+    x, y = np.linalg.solve(info, vec)
+    return Pose2(float(x), float(y), wrap_angle(ref + d_th / w_th))
 
 
 class ScanSink(Protocol):
@@ -190,6 +239,19 @@ def rotate_covariance(cov: np.ndarray, angle: float) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     R = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
     return R @ cov @ R.T
+
+
+def lidar_factor(j: int, k: int, found: scan_closure.Match) -> gtsam.BetweenFactorPose2:
+    """A robust (Cauchy) between factor from keyframe ``j`` to ``k`` of a lidar match (``k``'s pose in ``j``'s frame).
+
+    The match's covariance is in ``j``'s frame; GTSAM's between error is in
+    the measured pose's (``k``'s as measured), so it is rotated by the
+    match's heading first (as :meth:`LandmarkSlam._tag_noise` does for tags).
+    """
+    cov = rotate_covariance(found.covariance, found.pose.theta)
+    noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(ROBUST_K["cauchy"]),
+                                           gtsam.noiseModel.Gaussian.Covariance(cov))
+    return gtsam.BetweenFactorPose2(X(j), X(k), to_gtsam(found.pose), noise)
 
 
 class LandmarkSlam:
@@ -235,6 +297,9 @@ class LandmarkSlam:
         self._guesses: list[Pose2] = []  # each keyframe's map pose as estimated when it was added
         self._guess_xy = np.zeros((0, 2))  # [m] their positions, for the closure search
         self._references: dict[int, scan_closure.Reference] = {}  # keyframe index → its scan ready for matching
+        self._recent: dict[int, scan_closure.Reference] = {}  # the last max(scan_links) keyframes' references
+        self.n_links = 0
+        self.link_ms: list[float] = []  # wall time of each keyframe's lidar links [ms]
         self._closures: list[gtsam.NonlinearFactor] = []  # lidar factors waiting for the next iSAM2 update
         self.n_closures = 0
         self.closure_ms: list[float] = []  # wall time of each scan match [ms]
@@ -274,6 +339,7 @@ class LandmarkSlam:
             if len(self._guesses) > len(self._guess_xy):  # grown by doubling: appending stays O(1)
                 self._guess_xy = np.vstack([self._guess_xy, np.zeros((max(len(self._guess_xy), 64), 2))])
             self._guess_xy[len(self._guesses) - 1] = (self._latest_map_pose.x, self._latest_map_pose.y)
+            self._link_scans()
             self._close_loop()
         for m in tags:
             self._add_sighting(m)
@@ -326,8 +392,12 @@ class LandmarkSlam:
         d = math.hypot(at_image.x, at_image.y)
         cov = cov + odometry_covariance(at_image, d, abs(at_image.theta), abs(m.stamp - kf.stamp), self.cfg)
         old = self._pending.get(m.tag_id)
-        if old is None or np.trace(cov[:2, :2]) < np.trace(old.cov[:2, :2]):
-            self._pending[m.tag_id] = _Sighting(rel, cov)
+        if old is None:
+            self._pending[m.tag_id] = _Sighting(rel, cov, [(rel, cov)])
+            return
+        old.others.append((rel, cov))
+        if np.trace(cov[:2, :2]) < np.trace(old.cov[:2, :2]):
+            old.cov = cov  # the factor's weight stays the best single sighting's: repeats share systematic errors
 
     def _close_loop(self) -> None:
         """Match the newest keyframe's scan to the nearest old keyframe's; queue the factor if it converged."""
@@ -344,16 +414,43 @@ class LandmarkSlam:
             return  # a scan blanked by a lidar dropout has nothing to match
         t0 = time.perf_counter()
         if j not in self._references:
-            self._references[j] = scan_closure.reference(old.scan_offset.transform_points(old.scan.points()))
+            self._references[j] = self._recent.get(j) or self._reference(old)
         found = scan_closure.match(self._references[j], kf.scan_offset.transform_points(kf.scan.points()),
                                    self._guesses[j].between(here), self.cfg.closure_position)
         self.closure_ms.append(1e3 * (time.perf_counter() - t0))
         if found is None:
             return
-        noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(ROBUST_K["cauchy"]),
-                                               gtsam.noiseModel.Gaussian.Covariance(found.covariance))
-        self._closures.append(gtsam.BetweenFactorPose2(X(j), X(kf.index), to_gtsam(found.pose), noise))
+        self._closures.append(lidar_factor(j, kf.index, found))
         self.n_closures += 1
+
+    @staticmethod
+    def _reference(kf: Keyframe) -> scan_closure.Reference:
+        assert kf.scan is not None
+        return scan_closure.reference(kf.scan_offset.transform_points(kf.scan.points()))
+
+    def _link_scans(self) -> None:
+        """Match the newest keyframe's scan to the ``scan_links``-back keyframes' scans; queue the factors."""
+        kf = self.keyframes[-1]
+        links = self.cfg.scan_links
+        if not links:
+            return
+        t0 = time.perf_counter()
+        if kf.scan is not None and int(kf.scan.valid().sum()) >= CLOSURE_MIN_POINTS:
+            self._recent[kf.index] = self._reference(kf)
+            points = kf.scan_offset.transform_points(kf.scan.points())
+            for back in links:
+                ref = self._recent.get(kf.index - back)
+                if ref is None or kf.index % back:
+                    continue  # a longer link only from every back-th keyframe: chained, they keep iSAM2's cliques small
+                old = self.keyframes[kf.index - back]
+                found = scan_closure.match(ref, points, old.odom.between(kf.odom), True, gates=SCAN_LINK_GATES,
+                                           min_iterations=SCAN_LINK_ITERATIONS, floor=SCAN_LINK_SIGMA_MIN)
+                if found is not None:
+                    self._closures.append(lidar_factor(old.index, kf.index, found))
+                    self.n_links += 1
+        for i in [i for i in self._recent if i <= kf.index - max(links)]:
+            del self._recent[i]
+        self.link_ms.append(1e3 * (time.perf_counter() - t0))
 
     # -- the graph ---------------------------------------------------------
 
@@ -373,6 +470,7 @@ class LandmarkSlam:
         last_map = self._latest_map_pose
         for tag_id in sorted(self._pending):
             s = self._pending[tag_id]
+            s.rel = fuse_sightings(s.others)
             graph.add(gtsam.BetweenFactorPose2(X(last.index), L(tag_id), to_gtsam(s.rel), self._tag_noise(s)))
             self.n_tag_factors += 1
             if tag_id not in self._landmarks:

@@ -16,15 +16,17 @@ there is 10–30 cm (measured on ``homing bench slam``'s loop world: matches
 whose weaker position direction has σ > ``DEGENERATE`` all slid along a
 corridor). Such a direction is given ``FREE_SIGMA``: the closure then fixes
 the heading and the across-corridor offset only, which it measures to
-≈ 0.02° and ≈ 1 cm. :class:`~homing.mapping.landmark_slam.LandmarkSlam`
-keeps only the heading by default (``position=False``): on the loop world's
-30-minute runs, position closures — even the non-degenerate ones, each
-right to ~1 cm against the truth — left the map worse than heading-only
-ones (2.2–8.3 cm vs 1.8–3.5 cm mean per tag over four recorded runs),
-pulling whole corridors along their axis against the tags' sightings.
+≈ 0.02° and ≈ 1 cm.
 
 Frames: points are (N, 2) arrays in a keyframe's ``base_link`` [m]; a match
-returns the current keyframe's pose in the old one's frame. Not for: scans
+returns the current keyframe's pose in the old one's frame, and its
+covariance is in the old one's frame too. A GTSAM ``BetweenFactorPose2``
+measures its error in the *measured* pose's frame, so the covariance must
+be rotated by the match's heading first
+(:func:`homing.mapping.landmark_slam.lidar_factor`): used unrotated, a
+corridor's free axis and its tight one swap when the two passes cross at an
+angle, and position closures pulled whole corridors along their axis (why
+landmark SLAM once kept only their heading). Not for: scans
 from far-apart places (no global search: the guess must be within ~0.3 m
 and ~10°), or worlds of bare parallel walls only (every match degenerate).
 """
@@ -111,7 +113,8 @@ def merge(references: Sequence[Reference], poses: Sequence[Pose2]) -> Reference:
 
 def match(ref: Reference, points: np.ndarray, guess: Pose2, position: bool = True,
           max_rms: float = MAX_RMS, gates: tuple[float, ...] = GATES, min_overlap: float = MIN_OVERLAP,
-          min_iterations: int = MIN_ITERATIONS, converged: float = CONVERGED) -> Match | None:
+          min_iterations: int = MIN_ITERATIONS, converged: float = CONVERGED,
+          floor: tuple[float, float] = SIGMA_MIN) -> Match | None:
     """Pose of the frame of ``points`` (M, 2) [m] in ``ref``'s frame, starting from ``guess``; None if it fails.
 
     Gauss–Newton on point-to-line distances with Huber weights, the
@@ -123,7 +126,8 @@ def match(ref: Reference, points: np.ndarray, guess: Pose2, position: bool = Tru
     the covariance frees both position axes (a heading-only closure).
     ``min_iterations``: steps before convergence counts, ``converged``
     [m, rad] the step that counts as converged (fewer and coarser for a
-    refinement from a pose already within a few centimetres).
+    refinement from a pose already within a few centimetres); ``floor``
+    ([m], [rad]) the covariance's floors (see :func:`covariance`).
     """
     if len(ref.points) < MIN_PAIRS or len(points) < MIN_PAIRS:
         return None
@@ -151,7 +155,7 @@ def match(ref: Reference, points: np.ndarray, guess: Pose2, position: bool = Tru
     overlap = float(ok.mean())
     if rms > max_rms or overlap < min_overlap:
         return None
-    return Match(Pose2(float(x[0]), float(x[1]), float(x[2])), covariance(J, rms, position), rms, overlap)
+    return Match(Pose2(float(x[0]), float(x[1]), float(x[2])), covariance(J, rms, position, floor), rms, overlap)
 
 
 def covariance_at(ref: Reference, points: np.ndarray, pose: Pose2, gate: float = GATES[-1]) -> np.ndarray | None:
@@ -175,20 +179,24 @@ def covariance_at(ref: Reference, points: np.ndarray, pose: Pose2, gate: float =
     return covariance(J, float(np.sqrt(np.mean(r**2))))
 
 
-def covariance(J: np.ndarray, rms: float, position: bool = True) -> np.ndarray:
+def covariance(J: np.ndarray, rms: float, position: bool = True,
+               floor: tuple[float, float] = SIGMA_MIN) -> np.ndarray:
     """(3, 3) covariance of a match from its (K, 3) residual Jacobian, floored, with degenerate position axes freed.
 
-    ``position`` False frees both position axes. The heading–position cross
+    ``position`` False frees both position axes. ``floor`` ([m], [rad]): the
+    σ below which no position axis and no heading is claimed (default
+    ``SIGMA_MIN``; a short match between neighbouring keyframes, whose
+    errors were measured, may be given that measured floor instead). The heading–position cross
     terms are dropped: a freed axis would otherwise drag the heading's
     variance with it.
     """
-    cov = max(rms, SIGMA_MIN[0]) ** 2 * np.linalg.inv(J.T @ J)
+    cov = max(rms, SIGMA_MIN[0]) ** 2 * np.linalg.inv(J.T @ J)  # the residual's σ: the lidar's noise at least
     w, v = np.linalg.eigh(cov[:2, :2])
     sigma = np.sqrt(np.maximum(w, 0.0))
-    sigma = np.where((sigma > DEGENERATE) | (not position), FREE_SIGMA, np.maximum(sigma, SIGMA_MIN[0]))
+    sigma = np.where((sigma > DEGENERATE) | (not position), FREE_SIGMA, np.maximum(sigma, floor[0]))
     out = np.zeros((3, 3))
     out[:2, :2] = v @ np.diag(sigma**2) @ v.T
-    out[2, 2] = max(float(cov[2, 2]), SIGMA_MIN[1] ** 2)
+    out[2, 2] = max(float(cov[2, 2]), floor[1] ** 2)
     return out
 
 

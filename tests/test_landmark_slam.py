@@ -177,3 +177,27 @@ def test_grid_is_rebuilt_from_optimised_keyframe_poses(loop_slam):
     # Each scan is drawn where the robot was at the scan's stamp (0.1 s = 5 cm before the keyframe).
     for p, k in zip(sink.poses[1:], kf[1:], strict=False):
         assert p.x == pytest.approx(k.x - 0.05, abs=1e-6)
+
+
+def test_every_sighting_of_a_standing_robot_counts_not_only_the_best_conditioned():
+    """Six frames of one tag from one keyframe are averaged (issue 37: keeping the best one threw five away).
+
+    The best-conditioned frame is 2 cm long and the wall's heading in it
+    0.3° off; the others scatter ±2 cm and ±0.3° about the truth, and one
+    has only the corners' heading (0.3 rad off, σ 0.5 rad). The map is the mean.
+    """
+    tag = Pose2(1.2, 0.0, math.pi)
+    slam = LandmarkSlam(SlamConfig(anchor_tag=None))
+    wall = np.diag([1e-4, 1e-4, math.radians(0.3) ** 2])
+    corners = np.diag([1e-4, 1e-4, 0.5**2])
+    errors = [(0.02, 0.3, 0.95 * wall), (-0.02, -0.3, wall), (0.02, 0.3, wall), (-0.02, -0.3, wall),
+              (0.0, math.degrees(0.3), corners), (0.0, 0.0, wall), (-0.02, -0.3, wall), (0.02, 0.3, wall)]
+    for i, (dx, dyaw, cov) in enumerate(errors):
+        rel = Pose2(tag.x + dx, 0.0, tag.theta + math.radians(dyaw))
+        m = TagMeasurement(5, 0.1 * i, rel, cov, 1.2, 0.0, 0.0, 100.0, 0, 0.4, np.eye(4), np.zeros((4, 2)),
+                           yaw_source="tag" if cov is corners else "wall")
+        slam.update(0.1 * i, Pose2(), None, [m])
+    slam.flush()
+    est = slam.landmarks()[5]
+    assert est.distance_to(tag) < 0.002  # the best one alone: 2 cm
+    assert abs(math.remainder(est.theta - tag.theta, 2 * math.pi)) < math.radians(0.05)  # the best alone: 0.3°

@@ -6,7 +6,14 @@ import math
 
 import numpy as np
 from homing.mapping import scan_closure
-from homing.mapping.landmark_slam import LandmarkSlam, SlamConfig
+from homing.mapping.landmark_slam import (
+    SCAN_LINKS,
+    LandmarkSlam,
+    SlamConfig,
+    X,
+    lidar_factor,
+    to_gtsam,
+)
 from homing.robot import Pose2
 from homing.robot.types import Scan
 
@@ -110,13 +117,14 @@ def test_nearest_old_keyframe_skips_the_recent_ones():
     assert scan_closure.nearest_old(xy, np.array([3.0, 3.0]), 1.0, min_gap=1) is None
 
 
-def _laps(seed: int, closures: bool) -> tuple[float, int]:
+def _laps(seed: int, closures: bool, links: bool = False) -> tuple[float, int]:
     """Drive 3 laps round the room's pillar with a drifting gyro; (RMS keyframe error [m], closures made)."""
     rng = np.random.default_rng(seed)
     corners = [(1.0, 0.7), (5.0, 0.7), (5.0, 3.3), (1.0, 3.3)]
     truth = Pose2(1.0, 0.7, 0.0)
     odom = Pose2()
-    slam = LandmarkSlam(SlamConfig(anchor_tag=None, closure_radius=1.0 if closures else 0.0, closure_min_gap=20))
+    slam = LandmarkSlam(SlamConfig(anchor_tag=None, closure_radius=1.0 if closures else 0.0, closure_min_gap=20,
+                                   scan_links=SCAN_LINKS if links else ()))
     t, dt, kf_truth = 0.0, 0.1, []
     for _ in range(3):
         for i in range(4):
@@ -142,7 +150,41 @@ def _laps(seed: int, closures: bool) -> tuple[float, int]:
 
 def test_closures_straighten_a_drifting_drive():
     plain, none = _laps(0, closures=False)
-    closed, made = _laps(0, closures=True)  # heading-only closures (the default)
+    closed, made = _laps(0, closures=True)
     assert none == 0 and made > 20
     assert plain > 0.2  # the 1 % gyro scale error bends the odometry-only map (0.35 m RMS)
     assert closed < 0.3 * plain  # the walls keep every lap's heading (0.07 m)
+
+
+def test_lidar_links_keep_a_slipping_drive_straight_without_closures():
+    """Each keyframe's scan matched to the ones 1 and 4 back carries the map where wheels and gyro drift."""
+    plain, _ = _laps(0, closures=False)
+    linked, made = _laps(0, closures=False, links=True)
+    assert made == 0
+    assert linked < 0.5 * plain  # 0.35 m RMS → 0.13 m: what is left is the heading's random walk over 3 laps
+    closed, _ = _laps(0, closures=True)
+    both, _ = _laps(0, closures=True, links=True)
+    assert both < 0.8 * closed  # 5.4 cm → 3.8 cm with closures
+
+
+def test_a_closure_frees_the_corridor_axis_in_the_frame_its_error_is_measured_in():
+    """A match's covariance (old keyframe's frame) is rotated into the measured pose's frame for GTSAM.
+
+    The new keyframe is turned 90° from the old one: the corridor's axis,
+    free in the old frame's y, is the new frame's x. Unrotated, the factor
+    would pin the axis it cannot see and free the one it measured.
+    """
+    import gtsam
+
+    cov = np.diag([0.01**2, scan_closure.FREE_SIGMA**2, math.radians(0.1) ** 2])  # old frame: y is the corridor
+    found = scan_closure.Match(Pose2(1.0, 0.0, math.pi / 2), cov, 0.01, 0.9)
+    factor = lidar_factor(0, 1, found)
+
+    def error(dx: float, dy: float) -> float:  # keyframe 1 moved by (dx, dy) in the old keyframe's frame
+        v = gtsam.Values()
+        v.insert(X(0), to_gtsam(Pose2()))
+        v.insert(X(1), to_gtsam(Pose2(1.0 + dx, dy, math.pi / 2)))
+        return float(factor.error(v))
+
+    assert error(0.0, 0.3) < 0.1  # along the corridor: the match says nothing
+    assert error(0.3, 0.0) > 10.0  # across it: 30 σ
