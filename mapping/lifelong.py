@@ -131,15 +131,23 @@ class LifelongConfig:
 
 @dataclass
 class Node:
-    """A keyframe: its scan, its end points (M, 2) [m, base_link] within reach, the path [m] when it was made."""
+    """A keyframe: its scan, its end points (M, 2) [m, base_link] within reach, the path [m] when it was made.
+
+    ``view`` is the newest scan of its place and where it was taken from the keyframe (``view_at``): what the
+    grid is redrawn from, so that a redrawn map shows the place as it was last seen (a parcel taken away stays
+    away), while fits keep the keyframe's own points.
+    """
 
     index: int
     scan: Scan
     points: np.ndarray
     path: float
     reference: Reference | None = None  # its points with normals, made when first fitted against
+    view: Scan | None = None
+    view_at: Pose2 = field(default_factory=Pose2)
 
     def ref(self) -> Reference:
+        """Its points with their normals, for fits (made on first use)."""
         if self.reference is None:
             self.reference = submap.scan_reference(self.points)
         return self.reference
@@ -343,7 +351,7 @@ class LifelongSlam(GridSlam):
             return False
         if (min(a, j), max(a, j)) in self._ties:  # a route driven before: hop along it
             self.stats.hops += 1
-            self._hop(j, front, here.between(self._est[j]).inverse(), scan.stamp)
+            self._hop(j, front, here.between(self._est[j]).inverse(), scan)
             return True
         marginal = self.graph.marginal(a)
         if marginal is None:
@@ -364,13 +372,16 @@ class LifelongSlam(GridSlam):
         if not self._confirmed(tie, window):
             return False
         self.stats.ties += 1
-        self._hop(j, front, seen, scan.stamp)
+        self._hop(j, front, seen, scan)
         return True
 
-    def _hop(self, j: int, front: Pose2, seen: Pose2, stamp: float) -> None:
-        """Keyframe j becomes the anchor; the robot (front end at ``front``) stands at ``seen`` from it."""
+    def _hop(self, j: int, front: Pose2, seen: Pose2, scan: Scan) -> None:
+        """Keyframe j becomes the anchor; the robot (front end at ``front``) stands at ``seen`` from it, and ``scan``
+        is j's newest view."""
+        stamp = scan.stamp
         self._anchor, self._anchor_front = j, front.compose(seen.inverse())
         self._place(stamp, j, seen)
+        self.nodes[j].view, self.nodes[j].view_at = scan, seen
 
     def _close_loop(self, k: int) -> None:
         """Fit the new keyframe to the submap around the nearest one ``closure_gap`` older (graph_slam's search)."""
@@ -477,8 +488,11 @@ class LifelongSlam(GridSlam):
         else:
             grid.logodds = np.zeros_like(grid.logodds)
         grid.clear_cache()
-        for node, pose in zip(self.nodes, self._est, strict=True):
-            grid.integrate(node.scan, pose)
+        for node, at in zip(self.nodes, self._est, strict=True):
+            if node.view is None:
+                grid.integrate(node.scan, at)
+            else:
+                grid.integrate(node.view, at.compose(node.view_at))
         GridSlam.adopt(self, grid)  # the reference settles from the redrawn grid
         if isinstance(self.matcher, CorrelativeMatcher):
             self.matcher.forget()
