@@ -11,7 +11,7 @@ at (its *anchor*)::
                 │
                 ▼
       an old keyframe within cover_radius of here (facing alike)?
-       ├─ yes, already tied to the anchor ──► it becomes the anchor  (nothing stored)
+       ├─ yes, already tied to the anchor ──► it becomes the anchor  (the scan: its newest view)
        ├─ yes, and the scan fits the submap around it ──► tie anchor→it (robust); it becomes the anchor
        └─ no ──► new keyframe, tied to the anchor by the front end's motion
                    └─ loop closure: the new keyframe fitted to the submap around the nearest
@@ -26,7 +26,9 @@ So a place the robot has mapped adds no keyframe when it comes back (as
 slam_toolbox's lifelong mode, Macenski & Jambrecic 2021, replaces nodes
 instead of adding them): keyframes, factors and ties grow with the area
 mapped, not with the time spent there. A route driven again and again
-hops from one tied keyframe to the next and costs the graph nothing.
+hops from one tied keyframe to the next and costs the graph nothing; each
+keyframe it passes keeps the newest scan of its place, which redraws use
+(a parcel taken away stays away in the redrawn map).
 
 The front end keeps what made it trustworthy: the settled reference grid,
 the slip rungs, lost-and-found relocalisation. :meth:`set_pose` (the dock
@@ -41,7 +43,10 @@ adopted grid, which every redraw starts from.
 
 Frames: ``map`` as in :class:`GridSlam`. Costs: one iSAM2 update and one
 marginal per keyframe, a submap fit per new tie or closure search, and a
-redraw (one ``integrate`` per keyframe) only when a closure moved the map.
+redraw (one ``integrate`` per keyframe) only when a closure moved the map,
+and then rationed (``REBUILD_*``) to one ``integrate`` per keyframe step
+on average. The redrawn grid holds the keyframes' scans only, not every
+scan the front end fused since.
 Not for: a tag landmark SLAM that owns the grid (as GridSlam).
 """
 
@@ -171,7 +176,7 @@ class LifelongStats(Stats):
     """Counters of :class:`LifelongSlam` (those of :class:`~homing.mapping.graph_slam.Stats` and its own)."""
 
     ties: int = 0  # factors to a keyframe that covered the place (a revisit)
-    hops: int = 0  # revisits to a keyframe already tied to the anchor: nothing stored
+    hops: int = 0  # revisits to a keyframe already tied to the anchor: no factor, only its newest view kept
     rebuilds: int = 0  # grids redrawn from the keyframes
     jumps: int = 0  # set_pose calls that moved the robot (dock anchor, relocalisation)
     steps: int = 0  # keyframe steps (front end moved keyframe_distance)
