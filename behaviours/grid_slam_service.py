@@ -43,6 +43,14 @@ and twice went 4 h without finding its way home.
 this service in the same mission, its keys override these (it owns the grid).
 Do not use ``use_matcher: false`` other than as a baseline: the grid then
 drifts with the wheels.
+
+``loop_closure: true`` runs :class:`homing.mapping.lifelong.LifelongSlam`
+instead: the same tracking, with a keyframe pose graph that closes loops
+and redraws the grid from its optimised keyframes, keyframes added only
+where the robot has not been (memory grows with the area, not the days).
+The dock anchor and a relocalisation are known poses to its graph; after a
+restore from a snapshot the graph starts afresh, anchored on the restored
+grid (the keyframes of the run before are not kept in the snapshot).
 """
 
 from __future__ import annotations
@@ -61,6 +69,7 @@ from homing.behaviours.keys import (
 from homing.behaviours.registry import Param, register_service
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
+from homing.mapping.lifelong import LifelongSlam
 from homing.robot import Observation, Pose2, RobotAdapter
 from homing.robot.frames import wrap_angle
 from py_trees.common import Access
@@ -77,6 +86,8 @@ DOCK_SCANS = 10  # scans fused after docking, then none until the robot leaves (
         Param("use_matcher", bool, True, "", "correct odometry by scan-to-map matching (false: odometry-only baseline)"),
         Param("publish_period", float, PUBLISH_PERIOD, "s", "adapter time between grid snapshots on /map/grid (0: live)",
               minimum=0.0),
+        Param("loop_closure", bool, False, "", "close loops with a lifelong keyframe pose graph and redraw the grid "
+              "from it (homing.mapping.lifelong)"),
     ),
     writes=(GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY, RELOCALIZE_KEY),
 )
@@ -87,12 +98,15 @@ class GridSlamService:
     writes = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY, RELOCALIZE_KEY)
 
     def __init__(self, resolution: float = 0.05, use_matcher: bool = True,
-                 publish_period: float = PUBLISH_PERIOD) -> None:
+                 publish_period: float = PUBLISH_PERIOD, loop_closure: bool = False) -> None:
         if not resolution > 0:
             raise ValueError(f"resolution must be positive, not {resolution}")
         if publish_period < 0:
             raise ValueError(f"publish_period must be ≥ 0, not {publish_period}")
-        self.slam = GridSlam(resolution=resolution, use_matcher=use_matcher)
+        if loop_closure and not use_matcher:
+            raise ValueError("loop_closure needs use_matcher: the pose graph is built on the scan matcher's motion")
+        self.slam = (LifelongSlam(resolution=resolution) if loop_closure
+                     else GridSlam(resolution=resolution, use_matcher=use_matcher))
         self.publish_period = float(publish_period)  # [s]
         self.published: OccupancyGrid = self.slam.grid if publish_period == 0 else self.slam.grid.copy()
         self.bb: Any = None

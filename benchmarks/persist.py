@@ -56,6 +56,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=seed, default=1, help="seed of the run, its world changes and faults")
     parser.add_argument("--fault-every", default="2 h", help="one fault per this much simulated time (0: none)")
     parser.add_argument("--no-changes", action="store_true", help="a world that never changes")
+    parser.add_argument("--loop-closure", choices=("on", "off"), default=None,
+                        help="grid_slam's loop closure (homing.mapping.lifelong); default: the mission's")
     parser.add_argument("--plot", metavar="PNG", type=output_file("--plot"), help="draw resident memory over time into PNG")
 
 
@@ -99,6 +101,7 @@ class Life:
         self.next_progress = 0.0
         self.states: dict[str, list[float]] = {}  # mission state -> [simulated s, wall s] spent in it
         self.coverage: list[tuple[float, float]] = []  # (time, coverage of the navigable area) at each dock
+        self.keyframes: list[tuple[float, int]] = []  # (time, keyframes of grid_slam's pose graph) at each dock
         self.errors: dict[str, list[float]] = {}  # why the robot entered Error -> [times, simulated s in Error]
         self._error_reason: str | None = None  # the reason of the Error stretch under way
         self._last: tuple[float, float, str] | None = None  # (sim time, wall time, state) at the last call
@@ -132,6 +135,7 @@ class Life:
             truth = self.robot.truth_map()
             self.agreement.append((now, cell_agreement(grid, truth, self.world.dock_pose)))
             self.aligned.append((now, aligned_agreement(grid, truth, self.world.dock_pose)[0]))
+            self.keyframes.append((now, len(getattr(runner.services[0].slam, "nodes", ()))))
             self.area = float((grid.data == 0).sum()) * grid.resolution**2
             start = (self.world.start.x, self.world.start.y)  # the building's navigable area, as bench explore
             self.coverage.append((now, coverage(grid, self.world.map, start, self.world.dock_pose).coverage))
@@ -172,7 +176,7 @@ def error_cause(runner: Any) -> str:
 
 
 def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes: bool,
-         progress: Any) -> dict[str, Any]:
+         progress: Any, loop_closure: bool | None = None) -> dict[str, Any]:
     """Run the persistent mission for ``horizon`` [s]; resets (interventions) when it cannot carry on. A stop
     signal ends it early with ``interrupted`` True and the figures of the time simulated so far."""
     from homing.lifecycle.rundir import RunDir
@@ -186,7 +190,8 @@ def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes
     world_changes = (random_changes(world.map, world.reachable_free(), world.staging_pose(1.0), seed, horizon)
                      if changes else [])
     robot = SimRobot(world, seed=seed, faults=fault_schedule(seed, horizon, fault_every), changes=world_changes)
-    mission = compile_mission(resolve_mission("persistent"))
+    mission = compile_mission(resolve_mission("persistent"),
+                              None if loop_closure is None else {"loop_closure": loop_closure})
     life = Life(robot, world, horizon, progress)
     timing: dict[str, float] = {}
     interventions: list[tuple[float, str]] = []
@@ -240,7 +245,8 @@ def run(args: argparse.Namespace) -> int:
                   TimeElapsedColumn()) as bar:
         task = bar.add_task("", total=horizon)
         out = live(args.world, args.seed, horizon, every, not args.no_changes,
-                   lambda t: bar.update(task, completed=t, description=f"{t / 3600:5.1f} h"))
+                   lambda t: bar.update(task, completed=t, description=f"{t / 3600:5.1f} h"),
+                   None if args.loop_closure is None else args.loop_closure == "on")
     life: Life = out["life"]
     wall, sim = out["wall"], out["time"]
     rss = life.rss
@@ -295,9 +301,10 @@ def run(args: argparse.Namespace) -> int:
         "map_agreement_min": min(agree, default=math.nan), "map_agreement": life.agreement,
         "map_agreement_aligned_min": min((a for _, a in life.aligned), default=math.nan),
         "map_agreement_aligned": life.aligned,
+        "keyframes_at_dock": life.keyframes,
         "area_mapped_m2": life.area, "timing_s": out["timing"], "days": args.days, "world": args.world,
         "interrupted": out["interrupted"], "simulated_days": sim / DAY,
-        "seed": args.seed, "rss_median_by_day_mb": [row[5] for row in days],
+        "seed": args.seed, "loop_closure": args.loop_closure, "rss_median_by_day_mb": [row[5] for row in days],
         "coverage_navigable": life.coverage, "coverage_navigable_by_day": [row[2] for row in days],
         "error_pct": 100 * error_s / max(sim, 1e-9),
         "error_reasons": {k: {"times": int(v[0]), "sim_s": v[1]} for k, v in life.errors.items()}, "states_s": {k: {"sim": v[0], "wall": v[1]} for k, v in life.states.items()},

@@ -47,7 +47,8 @@ from homing.benchmarks.engine import (
 )
 
 SHARED_LOGS = Path(__file__).resolve().parent.parent.parent / "shared" / "datasets" / "carmen"
-METHOD_LABELS = {"odometry": "odometry", "scan_matching": "scan match", "grid": "grid SLAM", "graph": "pose graph"}
+METHOD_LABELS = {"odometry": "odometry", "scan_matching": "scan match", "grid": "grid SLAM", "graph": "pose graph",
+                 "online": "online SLAM"}
 PUBLISHED = {  # Kümmerle et al. 2009, translational error [m]: scan matching, RBPF (gmapping), graph mapping
     "aces": ((0.173, 0.614), (0.060, 0.049), (0.044, 0.044)),
     "intel": ((0.220, 0.296), (0.070, 0.083), (0.031, 0.026)),

@@ -156,11 +156,17 @@ class _Closure:
     estimate: Pose2  # k's estimate [map] before the fit
 
 
+def agree(fit_a: Pose2, estimate_a: Pose2, fit_b: Pose2, estimate_b: Pose2) -> bool:
+    """Whether a fit that moves a pose from ``estimate_a`` to ``fit_a`` [map] moves ``estimate_b`` to ``fit_b``
+    too (within ``CLOSURE_AGREE``): two closures that correct the map alike."""
+    moved = fit_a.compose(estimate_a.inverse()).compose(estimate_b)
+    d = moved.between(fit_b)
+    return math.hypot(d.x, d.y) <= CLOSURE_AGREE[0] and abs(d.theta) <= CLOSURE_AGREE[1]
+
+
 def _agree(a: _Closure, b: _Closure) -> bool:
     """Whether closure ``a``'s correction of the map also puts ``b``'s keyframe where ``b``'s fit does."""
-    moved = a.fit.pose.compose(a.estimate.inverse()).compose(b.estimate)
-    d = moved.between(b.fit.pose)
-    return math.hypot(d.x, d.y) <= CLOSURE_AGREE[0] and abs(d.theta) <= CLOSURE_AGREE[1]
+    return agree(a.fit.pose, a.estimate, b.fit.pose, b.estimate)
 
 
 @dataclass
@@ -188,7 +194,7 @@ def odometry_sigmas(delta: Pose2, path: float, turn: float) -> np.ndarray:
     return np.array([s_xy, s_xy, s_th])
 
 
-def _max_turn(scan: Scan) -> float:
+def max_turn(scan: Scan) -> float:
     """[rad] the largest heading difference at which two scans of this laser still share walls: FOV − 90°."""
     fov = abs(scan.angle_increment) * len(scan.ranges)
     return math.pi if fov >= 2 * math.pi - 1e-6 else max(fov - math.pi / 2, 0.0)
@@ -219,6 +225,62 @@ def _isam(qr: bool = False) -> gtsam.ISAM2:
     return gtsam.ISAM2(params)
 
 
+class PoseGraph:
+    """iSAM2 over keyframe poses ``X(i)`` that survives an ill-posed step (module doc).
+
+    Keeps every factor it was given, so that if Cholesky elimination finds the
+    system indeterminate the whole graph is rebuilt once with QR; turns a
+    fit's covariance into a factor's noise (or none, counted in ``stats``).
+    """
+
+    def __init__(self, stats: Stats) -> None:
+        self.isam = _isam()
+        self.factors = gtsam.NonlinearFactorGraph()  # every factor iSAM2 holds, to rebuild it with QR
+        self.qr = False
+        self.stats = stats
+
+    def update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, estimate: list[Pose2]) -> None:
+        """iSAM2's update; on an indeterminate Cholesky elimination, the whole graph again with QR (once),
+        started from ``estimate`` (the current pose of every keyframe already in the graph) and ``values``."""
+        try:
+            self.isam.update(graph, values)
+        except RuntimeError as err:
+            if self.qr or "ndetermina" not in str(err):  # GTSAM spells it "Indeterminant" in places
+                raise
+            self.qr = True
+            self.stats.qr_rebuilds += 1
+            everything = gtsam.NonlinearFactorGraph(self.factors)
+            everything.push_back(graph)
+            start = gtsam.Values(values)
+            for i, p in enumerate(estimate):
+                start.insert(X(i), to_gtsam(p))
+            self.isam = _isam(qr=True)
+            self.isam.update(everything, start)
+        self.factors.push_back(graph)
+
+    def noise(self, cov: np.ndarray, pose: Pose2, robust: bool = False) -> gtsam.noiseModel.Base | None:
+        """The factor's noise from a fit's (3, 3) covariance [map axes], or None (counted) if it is no measurement."""
+        w = np.linalg.eigvalsh(cov) if np.all(np.isfinite(cov)) else np.array([np.nan])
+        if not np.all(np.isfinite(w)) or w.min() < 0.0 or w.max() > COVARIANCE_MAX:
+            self.stats.skip("degenerate fit: no factor")
+            return None
+        # The fit's covariance is of the pose in map axes; the factor's error lives in the pose's own frame.
+        c = rotate_covariance(cov, pose.theta)
+        c = c + np.diag([MATCH_SIGMA_MIN[0] ** 2, MATCH_SIGMA_MIN[0] ** 2, MATCH_SIGMA_MIN[1] ** 2])
+        gauss = gtsam.noiseModel.Gaussian.Covariance(c)
+        if not robust:
+            return gauss
+        return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(CAUCHY_K), gauss)
+
+    def marginal(self, i: int) -> np.ndarray | None:
+        """(3, 3) marginal covariance of keyframe ``i`` [its own frame], or None (counted) if indeterminate."""
+        try:
+            return np.asarray(self.isam.marginalCovariance(X(i)))
+        except RuntimeError:  # an indeterminate marginal: no bound on a search
+            self.stats.skip("indeterminate marginal: no closure search")
+            return None
+
+
 class GraphSlam:
     """Keyframe pose-graph SLAM over odometry and scans (see module doc).
 
@@ -229,12 +291,10 @@ class GraphSlam:
 
     def __init__(self, config: GraphConfig | None = None) -> None:
         self.cfg = config or GraphConfig()
-        self.isam = _isam()
-        self._factors = gtsam.NonlinearFactorGraph()  # every factor iSAM2 holds, to rebuild it with QR
-        self._qr = False
         self.keyframes: list[Keyframe] = []
         self.places: list[_ScanPlace] = []
         self.stats = Stats()
+        self.graph = PoseGraph(self.stats)
         self._est: list[Pose2] = []  # current estimate of every keyframe [map]
         self._xy = np.zeros((0, 2))  # keyframes' estimated positions [m, map]
         self._theta = np.zeros(0)  # and headings [rad]
@@ -250,6 +310,15 @@ class GraphSlam:
         self._pending: _Closure | None = None  # a wide closure awaiting a second to agree
         self._gap = False  # the wheels missed part of the motion since the last keyframe
         self._resumed = False  # the wheels spoke again after a gap since the last scan
+
+    @property
+    def isam(self) -> gtsam.ISAM2:
+        """The graph's iSAM2 (:class:`PoseGraph`)."""
+        return self.graph.isam
+
+    @isam.setter
+    def isam(self, isam: gtsam.ISAM2) -> None:
+        self.graph.isam = isam
 
     # -- input -------------------------------------------------------------
 
@@ -308,7 +377,7 @@ class GraphSlam:
         self._gap = False
         graph.add(gtsam.BetweenFactorPose2(X(last.index), X(kf.index), to_gtsam(delta),
                                            gtsam.noiseModel.Diagonal.Sigmas(sig)))
-        noise = None if fitted is None else self._noise(fitted.covariance, pose)
+        noise = None if fitted is None else self.graph.noise(fitted.covariance, pose)
         if noise is not None:
             graph.add(gtsam.BetweenFactorPose2(X(last.index), X(kf.index), to_gtsam(rel), noise))
         values.insert(X(kf.index), to_gtsam(pose))
@@ -363,20 +432,6 @@ class GraphSlam:
             self.stats.matches += 1
         return found
 
-    def _noise(self, cov: np.ndarray, pose: Pose2, robust: bool = False) -> gtsam.noiseModel.Base | None:
-        """The factor's noise from a fit's (3, 3) covariance [map axes], or None (counted) if it is no measurement."""
-        w = np.linalg.eigvalsh(cov) if np.all(np.isfinite(cov)) else np.array([np.nan])
-        if not np.all(np.isfinite(w)) or w.min() < 0.0 or w.max() > COVARIANCE_MAX:
-            self.stats.skip("degenerate fit: no factor")
-            return None
-        # The fit's covariance is of the pose in map axes; the factor's error lives in the pose's own frame.
-        c = rotate_covariance(cov, pose.theta)
-        c = c + np.diag([MATCH_SIGMA_MIN[0] ** 2, MATCH_SIGMA_MIN[0] ** 2, MATCH_SIGMA_MIN[1] ** 2])
-        gauss = gtsam.noiseModel.Gaussian.Covariance(c)
-        if not robust:
-            return gauss
-        return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(CAUCHY_K), gauss)
-
     def _close_loop(self, kf: Keyframe) -> bool:
         """Fit the new keyframe to the submap around the nearest old one within reach; add the factor if it holds."""
         if self.cfg.closure_radius <= 0 or not self.cfg.scan_matching:
@@ -389,16 +444,15 @@ class GraphSlam:
         d = np.hypot(self._xy[:-1, 0] - here.x, self._xy[:-1, 1] - here.y)
         # A laser that sees less than all round sees other walls when it faces away from where it was.
         turn = np.abs(np.angle(np.exp(1j * (self._theta[:-1] - here.theta))))
-        d[~old | (turn > _max_turn(kf.scan))] = np.inf
+        d[~old | (turn > max_turn(kf.scan))] = np.inf
         j = int(np.argmin(d))
         if not d[j] <= self.cfg.closure_radius + CLOSURE_WINDOW_MAX[0]:
             return False
         # How far the graph itself says the new keyframe may be from where it has it.
-        try:
-            window = closure_window(self.isam.marginalCovariance(X(kf.index)))
-        except RuntimeError:  # an indeterminate marginal: no bound on the search, so no closure here
-            self.stats.skip("indeterminate marginal: no closure search")
+        marginal = self.graph.marginal(kf.index)
+        if marginal is None:  # no bound on the search, so no closure here
             return False
+        window = closure_window(marginal)
         if not d[j] <= self.cfg.closure_radius + window[0]:
             return False
         self.stats.closure_attempts += 1
@@ -423,7 +477,7 @@ class GraphSlam:
         return True
 
     def _add_closure(self, c: _Closure) -> None:
-        noise = self._noise(c.fit.covariance, c.fit.pose, robust=True)
+        noise = self.graph.noise(c.fit.covariance, c.fit.pose, robust=True)
         if noise is None:
             return
         graph = gtsam.NonlinearFactorGraph()
@@ -432,22 +486,7 @@ class GraphSlam:
         self.stats.closures += 1
 
     def _update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> None:
-        """iSAM2's update; on an indeterminate Cholesky elimination, the whole graph again with QR (once)."""
-        try:
-            self.isam.update(graph, values)
-        except RuntimeError as err:
-            if self._qr or "ndetermina" not in str(err):  # GTSAM spells it "Indeterminant" in places
-                raise
-            self._qr = True
-            self.stats.qr_rebuilds += 1
-            everything = gtsam.NonlinearFactorGraph(self._factors)
-            everything.push_back(graph)
-            start = gtsam.Values(values)
-            for i, p in enumerate(self._est):
-                start.insert(X(i), to_gtsam(p))
-            self.isam = _isam(qr=True)
-            self.isam.update(everything, start)
-        self._factors.push_back(graph)
+        self.graph.update(graph, values, self._est)
 
     def _refresh(self) -> None:
         est = self.isam.calculateEstimate()
@@ -466,10 +505,10 @@ class GraphSlam:
         t0 = time.perf_counter()
         start = self.isam.calculateEstimate()
         params = gtsam.LevenbergMarquardtParams()
-        if self._qr:
+        if self.graph.qr:
             params.setLinearSolverType("MULTIFRONTAL_QR")
         try:
-            result = gtsam.LevenbergMarquardtOptimizer(self._factors, start, params).optimize()
+            result = gtsam.LevenbergMarquardtOptimizer(self.graph.factors, start, params).optimize()
         except RuntimeError:  # the batch could not improve on iSAM2's estimate: keep that
             self.stats.skip("indeterminate batch: iSAM2's estimate kept")
             result = start

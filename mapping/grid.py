@@ -247,7 +247,9 @@ class OccupancyGrid:
         # Fancy-index += applies once per distinct index: each cell is updated once per scan.
         flat[free_idx] += L_FREE
         flat[hit_idx] += L_OCC
-        np.clip(flat, L_MIN, L_MAX, out=flat)
+        # Only the cells just updated can have left the clamps (every cell starts, and is set, within them).
+        touched = np.concatenate([free_idx, hit_idx])
+        flat[touched] = np.clip(flat[touched], L_MIN, L_MAX)
         if len(lengths):
             self._touch((min(ox, float(ends_x.min())), min(oy, float(ends_y.min())),
                          max(ox, float(ends_x.max())), max(oy, float(ends_y.max()))))

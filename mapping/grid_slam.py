@@ -153,9 +153,9 @@ class GridSlam:
         )
         self.max_correction = max_correction  # [m, rad] a larger jump from the prediction is a false match
         self.match_range = match_range  # [m] end points matched (None: the scan's range_max − MATCH_RANGE_MARGIN)
-        self.map_to_odom = Pose2()
-        self.pose = Pose2()
-        self.scan_pose = Pose2()  # base_link in map where the last scan was fused
+        self.map_to_odom: Pose2 = Pose2()
+        self.pose: Pose2 = Pose2()
+        self.scan_pose: Pose2 = Pose2()  # base_link in map where the last scan was fused
         self.scans_fused = 0
         self.matches_rejected = 0
         self.last_score = float("nan")

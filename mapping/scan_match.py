@@ -335,6 +335,10 @@ class CorrelativeMatcher:
         # and again as it grows (a SLAM's map), where computing each match's crop afresh is most of the cost.
         self.whole: GridField | None = GridField(sigma) if whole_field else None
 
+    def forget(self) -> None:
+        """Drop the field kept for reuse (``field_max_age``): the grid matched against was redrawn."""
+        self._cache = None
+
     def match(self, grid: OccupancyGrid, points: np.ndarray, prior: Pose2, max_range: float = 5.0) -> MatchResult:
         """Best pose of the scan ``points`` (M, 2) [m, base_link] in ``grid`` near ``prior`` [map].
 
