@@ -85,7 +85,7 @@ def test_bench_persist_interrupted_writes_the_figures_of_the_time_it_simulated(
     monkeypatch.setattr(runner_module, "stop_requested", lambda: next(ticks) >= 400)  # ~40 s at 10 Hz
     path = tmp_path / "persist.json"
     args = argparse.Namespace(world="lab", seed=1, days=1.0, fault_every="0", no_changes=True, json=str(path),
-                              plot=None)
+                              plot=None, loop_closure=None)
     assert persist.run(args) == 130
     data = json.loads(path.read_text())
     assert data["interrupted"] is True
