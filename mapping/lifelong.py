@@ -60,6 +60,7 @@ import gtsam
 import numpy as np
 from homing.mapping import submap
 from homing.mapping.graph_slam import (
+    CAUCHY_K,
     CLOSURE_CONFIRM,
     CLOSURE_CONFIRM_WITHIN,
     CLOSURE_GAP,
@@ -107,8 +108,6 @@ FRONT_SIGMA = (0.01, 0.08, 0.02, math.radians(0.1), 0.02, math.radians(0.2))
 JUMP = (0.1, math.radians(3.0))  # [m, rad] a set_pose moving the pose this far is a jump, not motion
 KNOWN_SIGMA = (0.05, 0.05, math.radians(2.0))  # [m, m, rad] σ of the prior where set_pose puts the robot
 SETTLE_ITERATIONS = 2  # extra iSAM2 iterations after a tie or closure (relinearise around the new optimum)
-CAUCHY_K = 2.3849
-
 
 @dataclass(frozen=True)
 class LifelongConfig:

@@ -17,17 +17,23 @@ from homing.sim import SimRobot, load_world
 from py_trees.common import Access
 
 
-@pytest.fixture(params=[False, True], ids=["grid", "loop_closure"])
-def docked(request: pytest.FixtureRequest) -> Iterator[tuple[SimRobot, GridSlamService, py_trees.blackboard.Client]]:
-    py_trees.blackboard.Blackboard.clear()
-    robot = SimRobot(load_world("lab"), seed=1)
-    service = GridSlamService(loop_closure=request.param)
+def _set_up(robot: SimRobot, loop_closure: bool) -> tuple[GridSlamService, py_trees.blackboard.Client]:
+    """The grid_slam service set up on ``robot``, and a board that may write the dock's pose."""
+    service = GridSlamService(loop_closure=loop_closure)
     board = py_trees.blackboard.Client(name="test:dock")
     board.register_key(key=DOCK_KEY, access=Access.WRITE)
     client = py_trees.blackboard.Client(name="service:grid_slam")
     for key in GridSlamService.writes:
         client.register_key(key=key, access=Access.WRITE)
     service.setup(robot, client)
+    return service, board
+
+
+@pytest.fixture(params=[False, True], ids=["grid", "loop_closure"])
+def docked(request: pytest.FixtureRequest) -> Iterator[tuple[SimRobot, GridSlamService, py_trees.blackboard.Client]]:
+    py_trees.blackboard.Blackboard.clear()
+    robot = SimRobot(load_world("lab"), seed=1)
+    service, board = _set_up(robot, request.param)
     try:
         yield robot, service, board
     finally:
@@ -91,13 +97,7 @@ def test_the_anchor_is_a_known_pose_to_the_pose_graph() -> None:
     py_trees.blackboard.Blackboard.clear()
     robot = SimRobot(load_world("lab"), seed=1)
     try:
-        service = GridSlamService(loop_closure=True)
-        board = py_trees.blackboard.Client(name="test:dock")
-        board.register_key(key=DOCK_KEY, access=Access.WRITE)
-        client = py_trees.blackboard.Client(name="service:grid_slam")
-        for key in GridSlamService.writes:
-            client.register_key(key=key, access=Access.WRITE)
-        service.setup(robot, client)
+        service, board = _set_up(robot, True)
         _tick(robot, service, 2.0)
         board.set(DOCK_KEY, Pose2(), overwrite=True)
         slam = service.slam
