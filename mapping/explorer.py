@@ -388,12 +388,11 @@ class Explorer:
         res = grid.resolution
         rr = (pose.y - grid.origin[1]) / res - 0.5
         rc = (pose.x - grid.origin[0]) / res - 0.5
-        rows = np.arange(h)[:, None]
-        cols = np.arange(w)[None, :]
-        excluded = (rows - rr) ** 2 + (cols - rc) ** 2 <= (self.reach_radius / res) ** 2
+        excluded = np.zeros((h, w), bool)
+        _disc(excluded, rr, rc, self.reach_radius / res)
         for bx, by in self.blacklist:
-            br, bc = (by - grid.origin[1]) / res - 0.5, (bx - grid.origin[0]) / res - 0.5
-            excluded |= (rows - br) ** 2 + (cols - bc) ** 2 <= (self.blacklist_radius / res) ** 2
+            _disc(excluded, (by - grid.origin[1]) / res - 0.5, (bx - grid.origin[0]) / res - 0.5,
+                  self.blacklist_radius / res)
         current = None
         if self.goal is not None:
             gr, gc = grid.world_to_cell(self.goal.x, self.goal.y)
@@ -403,6 +402,19 @@ class Explorer:
             distance=distance, excluded=excluded, rng=self.rng, current_goal=current,
             robot_radius=self.robot_radius,
         )
+
+
+def _disc(mask: np.ndarray, row: float, col: float, radius: float) -> None:
+    """Set the cells of ``mask`` whose (row, col) lie within ``radius`` [cells] of (row, col): in the disc's own
+    square, not over the whole floor."""
+    h, w = mask.shape
+    r0, r1 = max(math.floor(row - radius), 0), min(math.ceil(row + radius) + 1, h)
+    c0, c1 = max(math.floor(col - radius), 0), min(math.ceil(col + radius) + 1, w)
+    if r1 <= r0 or c1 <= c0:
+        return
+    rows = np.arange(r0, r1)[:, None]
+    cols = np.arange(c0, c1)[None, :]
+    mask[r0:r1, c0:c1] |= (rows - row) ** 2 + (cols - col) ** 2 <= radius**2
 
 
 def settled(reason: str) -> bool:

@@ -145,9 +145,13 @@ class OccupancyGrid:
         return g
 
     def copy(self) -> OccupancyGrid:
+        """An independent grid with the same cells, version and change history; its map_server view is this
+        grid's (worked out here only where it changed, and shared: a view handed out is never changed)."""
         g = OccupancyGrid(self.resolution, self.origin, self.shape, self.grow)
         g.logodds[:] = self.logodds
         g.version = self.version
+        g._data, g._data_key = self.data, self._data_key
+        g._changes = list(self._changes)
         return g
 
     # ------------------------------------------------------- coordinates

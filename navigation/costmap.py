@@ -60,6 +60,7 @@ COST_SCALING_FACTOR = 5.0  # [1/m] how fast the inflation cost decays past the i
 OBSTACLE_MAX_RANGE = 2.5  # [m] scan returns farther than this do not mark (Nav2 default)
 RAYTRACE_MAX_RANGE = 3.0  # [m] rays clear the obstacle layer up to this far (Nav2 default)
 FILL_SHIFT = 4  # fractional bits of the clearing polygon's vertices (1/16 cell)
+CHANGES_KEPT = 64  # versions whose changed cells are remembered (changed_since)
 CLEARANCE_MARGIN = 0.45  # [m] beyond the inscribed radius, ``clearance`` stays exact at least this far
                          # (the controllers slow down within 0.3 m of the footprint)
 
@@ -130,6 +131,7 @@ class Costmap:
         self.cost: np.ndarray = np.zeros((0, 0), dtype=np.uint8)
         self.clearance = np.zeros((0, 0), dtype=np.float32)
         self.version = 0  # bumped whenever ``cost`` changes
+        self._changes: list[tuple[int, tuple[int, int, int, int] | None]] = []  # (version, cells it changed)
         self.keepout: list[Keepout] = []
         self.bumps = BumpMarks()
         self.required: tuple[float, float, float, float] | None = None  # [m] box the costmap must span
@@ -179,6 +181,19 @@ class Costmap:
         ok = self.inside(rc)
         out[ok] = self.cost[rc[ok, 0], rc[ok, 1]]
         return out
+
+    def changed_since(self, version: int) -> tuple[int, int, int, int] | None:
+        """(r0, r1, c0, c1): a box holding every cell whose ``cost`` or ``clearance`` changed after ``version``
+        (empty when none did), or None when that is not known (the whole costmap was redone, or ``version`` is
+        older than the changes kept): what a reader caching arrays derived cell by cell must redo."""
+        if version >= self.version:
+            return (0, 0, 0, 0)
+        since = [box for v, box in self._changes if v > version]
+        if len(since) != self.version - version or any(b is None for b in since):
+            return None
+        boxes = [b for b in since if b is not None]
+        return (min(b[0] for b in boxes), max(b[1] for b in boxes), min(b[2] for b in boxes),
+                max(b[3] for b in boxes))
 
     # -- layers -------------------------------------------------------------------
     def update_static(self, grid: Any) -> None:
@@ -382,6 +397,7 @@ class Costmap:
         then only known to be at least the horizon (inflation ends before it).
         """
         h, w = self.shape
+        changed: tuple[int, int, int, int] | None = None
         if box is None or self.clearance.shape != (h, w):
             self.clearance, self.cost = self._inflated(0, h, 0, w)
         else:
@@ -393,7 +409,10 @@ class Costmap:
             inner = (slice(a[0] - b[0], a[1] - b[0]), slice(a[2] - b[2], a[3] - b[2]))
             self.clearance[a[0]:a[1], a[2]:a[3]] = d[inner]
             self.cost[a[0]:a[1], a[2]:a[3]] = cost[inner]
+            changed = a
         self.version += 1
+        self._changes.append((self.version, changed))
+        del self._changes[:-CHANGES_KEPT]
 
     def _horizon(self) -> float:
         """[m] how far a lethal cell's influence on cost and on the controllers' clearance checks reaches."""

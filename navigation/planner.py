@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import math
+import weakref
 from typing import Protocol
 
 import cv2
@@ -81,13 +82,65 @@ class GlobalPlanner(Protocol):
 # -- shared steps ---------------------------------------------------------------------
 def traversal_weights(costmap: Costmap, cost_weight: float = COST_WEIGHT,
                       allow_unknown: bool = True) -> np.ndarray:
-    """(H, W) float64 cost of crossing each cell (≥ 1), ``inf`` where the footprint does not fit."""
-    c = costmap.cost
+    """(H, W) float64 cost of crossing each cell (≥ 1), ``inf`` where the footprint does not fit; read-only.
+
+    A cell's weight depends on its own cost and clearance alone, so the
+    array is kept with the costmap and redone only over the box of cells
+    that changed since (:meth:`Costmap.changed_since`): a scan changes a few
+    metres round the robot, not the whole floor.
+    """
+    return _weights(costmap, cost_weight, allow_unknown).w
+
+
+def _weights(costmap: Costmap, cost_weight: float, allow_unknown: bool) -> _Weights:
+    """The kept weights of ``costmap`` for these parameters, brought up to its version."""
+    kept = _KEPT.setdefault(costmap, {})
+    key = (float(cost_weight), bool(allow_unknown), costmap.inscribed_radius)
+    entry = kept.get(key)
+    box = None if entry is None or entry.cost is not costmap.cost else costmap.changed_since(entry.version)
+    if entry is None or box is None:
+        entry = kept[key] = _Weights(costmap.version, costmap.cost, _weights_in(costmap, cost_weight, allow_unknown))
+    elif box[1] > box[0] and box[3] > box[2]:
+        window = (slice(box[0], box[1]), slice(box[2], box[3]))
+        entry.update(window, _weights_in(costmap, cost_weight, allow_unknown, window))
+    entry.version = costmap.version
+    return entry
+
+
+def _weights_in(costmap: Costmap, cost_weight: float, allow_unknown: bool,
+                window: tuple[slice, slice] = (slice(None), slice(None))) -> np.ndarray:
+    c = costmap.cost[window]
     w = _weight_table(cost_weight, allow_unknown)[c]  # one lookup per cell: the cost is a byte
     # A thin band just outside the inscribed radius is crossed only when nothing else will do:
     # a path grazing the inscribed edge leaves a tracking controller no room at corners.
-    w[(costmap.clearance < costmap.inscribed_radius + GRAZE_MARGIN) & (c < INSCRIBED)] += GRAZE_PENALTY
+    w[(costmap.clearance[window] < costmap.inscribed_radius + GRAZE_MARGIN) & (c < INSCRIBED)] += GRAZE_PENALTY
     return w
+
+
+class _Weights:
+    """One costmap's traversal weights for one set of parameters, float64 and (for A*) float32, read-only."""
+
+    def __init__(self, version: int, cost: np.ndarray, w: np.ndarray) -> None:
+        self.version, self.cost, self.w = version, cost, w
+        self._w32: np.ndarray | None = None
+        w.flags.writeable = False
+
+    @property
+    def w32(self) -> np.ndarray:
+        if self._w32 is None:
+            self._w32 = self.w.astype(np.float32)
+            self._w32.flags.writeable = False
+        return self._w32
+
+    def update(self, window: tuple[slice, slice], values: np.ndarray) -> None:
+        for a in (self.w, self._w32):
+            if a is not None:
+                a.flags.writeable = True
+                a[window] = values
+                a.flags.writeable = False
+
+
+_KEPT: weakref.WeakKeyDictionary[Costmap, dict[tuple[float, bool, float], _Weights]] = weakref.WeakKeyDictionary()
 
 
 @functools.lru_cache(maxsize=16)
@@ -103,8 +156,9 @@ def _weight_table(cost_weight: float, allow_unknown: bool) -> np.ndarray:
 
 
 def _endpoints(costmap: Costmap, weights: np.ndarray, start: Pose2, goal: Pose2,
-               goal_tolerance: float) -> tuple[tuple[int, int], tuple[int, int]]:
-    """Start and goal cells, checked; lets the robot plan out of an inscribed start."""
+               goal_tolerance: float) -> tuple[tuple[int, int], tuple[int, int], np.ndarray]:
+    """Start and goal cells, checked, and the weights to plan on: ``weights`` itself, or a copy that lets the
+    robot plan out of an inscribed start."""
     if costmap.cost.size == 0:
         raise StartOccupied("the costmap is empty")
     s = costmap.world_to_cell(np.array([start.x, start.y]))
@@ -117,6 +171,7 @@ def _endpoints(costmap: Costmap, weights: np.ndarray, start: Pose2, goal: Pose2,
     if not np.isfinite(weights[sr, sc]):
         # A robot grazing a wall must still be able to plan its way out (NavFn frees the start too).
         n = int(math.ceil(ESCAPE_RADIUS / costmap.resolution))
+        weights = weights.copy()
         r0, r1 = max(sr - n, 0), min(sr + n + 1, weights.shape[0])
         c0, c1 = max(sc - n, 0), min(sc + n + 1, weights.shape[1])
         win = weights[r0:r1, c0:c1]
@@ -131,7 +186,7 @@ def _endpoints(costmap: Costmap, weights: np.ndarray, start: Pose2, goal: Pose2,
         if cell is None:
             raise GoalOccupied(f"goal ({goal.x:.2f}, {goal.y:.2f}) is occupied or outside the costmap")
         gr, gc = cell
-    return (sr, sc), (gr, gc)
+    return (sr, sc), (gr, gc), weights
 
 
 def _nearest_free(costmap: Costmap, weights: np.ndarray, r: int, c: int,
@@ -287,7 +342,7 @@ class DijkstraPlanner(GridPlanner):
 
     def plan(self, costmap: Costmap, start: Pose2, goal: Pose2) -> np.ndarray:
         w = traversal_weights(costmap, self.cost_weight, self.allow_unknown)
-        s, g = _endpoints(costmap, w, start, goal, self.goal_tolerance)
+        s, g, w = _endpoints(costmap, w, start, goal, self.goal_tolerance)
         graph, index, cells = grid_graph(w)
         dist, pred = dijkstra(graph, directed=False, indices=index[s], return_predecessors=True)
         gi = index[g]
@@ -332,7 +387,7 @@ class FastMarchingPlanner(GridPlanner):
 
     def plan(self, costmap: Costmap, start: Pose2, goal: Pose2) -> np.ndarray:
         w = traversal_weights(costmap, self.cost_weight, self.allow_unknown)
-        s, g = _endpoints(costmap, w, start, goal, self.goal_tolerance)
+        s, g, w = _endpoints(costmap, w, start, goal, self.goal_tolerance)
         t = _march(w, g, speed=True)
         if not np.isfinite(t[s]):
             raise NoPathFound("no free path from start to goal")
@@ -407,9 +462,14 @@ class AStarPlanner(GridPlanner):
     name = "astar"
 
     def plan(self, costmap: Costmap, start: Pose2, goal: Pose2) -> np.ndarray:
-        w = traversal_weights(costmap, self.cost_weight, self.allow_unknown)
-        s, g = _endpoints(costmap, w, start, goal, self.goal_tolerance)
-        path = pyastar2d.astar_path(w.astype(np.float32), s, g, allow_diagonal=True)
+        kept = _weights(costmap, self.cost_weight, self.allow_unknown)
+        s, g, w = _endpoints(costmap, kept.w, start, goal, self.goal_tolerance)
+        w32 = kept.w32 if w is kept.w else w.astype(np.float32)
+        h, wd = w.shape
+        # pyastar2d's own wrapper would check the minimum and copy the whole floor's weights at every plan:
+        # they are ≥ 1 by construction (the table's and the escape's), and a C-contiguous ravel is a view.
+        path = pyastar2d.astar.astar(np.ascontiguousarray(w32).ravel(), h, wd, s[0] * wd + s[1], g[0] * wd + g[1],
+                                     True, 0)
         if path is None:
             raise NoPathFound("no free path from start to goal")
         return _finish(costmap, w, np.asarray(path), start, goal, g, self.smooth)
@@ -461,7 +521,7 @@ def distance_map(costmap: Costmap, start: Pose2 | tuple[float, float],
     w = traversal_weights(costmap, 0.0, allow_unknown)
     out = np.full(costmap.shape, np.inf)
     try:
-        s, _ = _endpoints(costmap, w, Pose2(sx, sy), Pose2(sx, sy), 0.0)
+        s, _, w = _endpoints(costmap, w, Pose2(sx, sy), Pose2(sx, sy), 0.0)
     except PlanningError:
         return out
     exact = ((sy - costmap.origin[1]) / costmap.resolution - 0.5, (sx - costmap.origin[0]) / costmap.resolution - 0.5)

@@ -127,6 +127,27 @@ def test_the_map_view_updated_where_scans_changed_it_is_the_view_computed_afresh
     assert grid.shape[0] > 40 and grid.shape[1] > 40
 
 
+def test_a_copy_shares_the_view_and_history_but_changes_apart():
+    # The SLAM service publishes copies of its live grid: each copy's view is the live one's (worked out only
+    # where scans changed it), and after either changes, each view is still the one of its own log-odds.
+    world = truth("loop")
+    rng = np.random.default_rng(5)
+    live = OccupancyGrid(0.05, shape=(40, 40))
+    poses = list(path_poses([(-8.4, -8.4), (8.4, -8.4), (8.4, 8.4)], speed=2.0))
+    for pose in poses[:10]:
+        live.integrate(cast_scan(world, pose, 0.0, rng), pose)
+    copy = live.copy()
+    v = copy.version
+    assert np.array_equal(copy.data, _classified(copy)) and copy.changed_since(v) == (0, 0, 0, 0)
+    frozen = copy.data.copy()
+    for pose in poses[10:20]:
+        live.integrate(cast_scan(world, pose, 0.0, rng), pose)
+    assert np.array_equal(copy.data, frozen)  # the live grid's scans do not reach the copy
+    copy.integrate(cast_scan(world, poses[-1], 0.0, rng), poses[-1])
+    assert np.array_equal(copy.data, _classified(copy)) and np.array_equal(live.data, _classified(live))
+    assert copy.changed_since(v - 5) is not None  # its history came with it
+
+
 def test_changed_since_bounds_every_changed_cell_and_says_when_it_does_not_know():
     world = truth("loop")
     rng = np.random.default_rng(9)

@@ -190,3 +190,40 @@ def test_unknown_space_is_crossed_only_when_allowed() -> None:
 def test_unknown_planner_name_lists_the_known_ones() -> None:
     with pytest.raises(KeyError, match="dijkstra"):
         make_planner("navfn")
+
+
+def test_kept_weights_follow_every_costmap_change_to_the_bit() -> None:
+    """The planner keeps a costmap's traversal weights and redoes only the box that changed: after scans that
+    mark and clear, a bumper mark, a new static map on the same lattice and one that grew, they equal the
+    weights computed afresh over the whole costmap; and a start inside the inflation plans on a copy."""
+    from homing.navigation.planner import _weights_in, traversal_weights
+    from homing.robot import Scan
+
+    cm = Costmap()
+    grid = rasterise(MAZE, (10.0, 10.0), RES)
+    cm.set_static(grid, RES, (0.0, 0.0))
+    rng = np.random.default_rng(3)
+
+    def fresh(cost_weight: float = 0.5, allow_unknown: bool = True) -> np.ndarray:
+        return _weights_in(cm, cost_weight, allow_unknown)
+
+    assert np.array_equal(traversal_weights(cm), fresh())
+    for k in range(12):
+        ranges = rng.uniform(0.3, 3.5, 360)  # returns where the maze has no wall: marks, later cleared
+        scan = Scan(0.2 * k, -math.pi, math.radians(1.0), ranges, 0.15, 6.0)
+        cm.update_scan(scan, Pose2(*rng.uniform(1.0, 9.0, 2), float(rng.uniform(-3, 3))))
+        kept = traversal_weights(cm)
+        assert not kept.flags.writeable
+        assert np.array_equal(kept, fresh()), k
+        assert np.array_equal(traversal_weights(cm, 0.0, False), fresh(0.0, False)), k
+    changed = grid.copy()
+    changed[40:60, 100:120] = 100  # a box appears in the static map
+    cm.set_static(changed, RES, (0.0, 0.0))
+    assert np.array_equal(traversal_weights(cm), fresh())
+    cm.set_static(np.pad(changed, ((0, 20), (10, 0)), constant_values=-1), RES, (-0.5, 0.0))  # the map grew
+    assert np.array_equal(traversal_weights(cm), fresh())
+    before = traversal_weights(cm).copy()
+    start = Pose2(2.1 + 0.19, 3.0)  # the footprint touches a wall: the plan frees its way out on a copy
+    assert not np.isfinite(before[tuple(cm.world_to_cell(np.array([start.x, start.y]))[0])])
+    assert path_length(make_planner("astar").plan(cm, start, Pose2(3.0, 3.0))) < 1.5
+    assert np.array_equal(traversal_weights(cm), before)
