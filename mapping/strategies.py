@@ -323,7 +323,11 @@ def robot_room(ctx: GoalContext, doors: np.ndarray | None = None) -> np.ndarray:
         _, dl = cv2.connectedComponents(doors.astype(np.uint8), connectivity=8)
         blob = cv2.dilate((dl == dl[r, c]).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
         keep = set(np.unique(labels[blob]).tolist()) - {0}
-    return np.isin(labels, list(keep)) if keep else np.zeros_like(reach)
+    if not keep:
+        return np.zeros_like(reach)
+    chosen = np.zeros(int(labels.max()) + 1, bool)  # a lookup by label: no sort of the whole floor's labels
+    chosen[list(keep)] = True
+    return chosen[labels]
 
 
 def _centroid_goal(seg: FrontierSegment, ctx: GoalContext, free: np.ndarray) -> tuple[int, int] | None:
