@@ -232,22 +232,28 @@ class OccupancyGrid:
         step = 0.5 * res
         n_steps = int(math.ceil(float(lengths.max(initial=0.0)) / step)) + 1
         t = np.arange(n_steps, dtype=float) * step  # (K,)
-        # Free samples stop half a cell short of the end so the end cell is not cleared by its own ray.
-        valid = t[None, :] < (lengths[:, None] - np.where(hit, step, 0.0)[:, None])
-        xs = ox + np.cos(angles)[:, None] * t[None, :]
-        ys = oy + np.sin(angles)[:, None] * t[None, :]
-        r, c = self.world_to_cell(xs[valid], ys[valid])
+        # Free samples stop half a cell short of the end so the end cell is not cleared by its own ray: ray i
+        # takes the samples t[k] < its length (less a step if it hit), counted by a search in the sorted t, and
+        # only those are made (not the whole rays × K block).
+        counts = np.searchsorted(t, lengths - np.where(hit, step, 0.0), side="left")
+        ray = np.repeat(np.arange(len(lengths)), counts)
+        k = np.arange(len(ray)) - np.repeat(np.cumsum(counts) - counts, counts)
+        xs = ox + np.cos(angles)[ray] * t[k]
+        ys = oy + np.sin(angles)[ray] * t[k]
+        r, c = self.world_to_cell(xs, ys)
         inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
         free_idx = r[inside] * w + c[inside]
         hr, hc = self.world_to_cell(ends_x[hit], ends_y[hit])
         inside = (hr >= 0) & (hr < h) & (hc >= 0) & (hc < w)
         hit_idx = hr[inside] * w + hc[inside]
         flat = self.logodds.reshape(-1)
-        if hit_idx.size:
-            # End points win over rays grazing past them in the same scan.
-            is_hit = np.zeros(flat.size, dtype=bool)
-            is_hit[hit_idx] = True
-            free_idx = free_idx[~is_hit[free_idx]]
+        if hit_idx.size and free_idx.size:
+            # End points win over rays grazing past them in the same scan (marked in the span of cells the scan
+            # touched, not over the whole floor).
+            lo = min(int(free_idx.min()), int(hit_idx.min()))
+            is_hit = np.zeros(max(int(free_idx.max()), int(hit_idx.max())) - lo + 1, dtype=bool)
+            is_hit[hit_idx - lo] = True
+            free_idx = free_idx[~is_hit[free_idx - lo]]
         # Fancy-index += applies once per distinct index: each cell is updated once per scan.
         flat[free_idx] += L_FREE
         flat[hit_idx] += L_OCC
