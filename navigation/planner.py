@@ -540,9 +540,17 @@ def distance_map(costmap: Costmap, start: Pose2 | tuple[float, float],
                exact=((exact[0] + 0.5) / f - 0.5, (exact[1] + 0.5) / f - 0.5)) * (f * costmap.resolution)
     # Each cell's distance: the blocks' round it, bilinear at its centre over the open ones (normalised
     # convolution: the closed blocks' weight left out), so that distances still grow smoothly cell by cell.
-    known = np.isfinite(t)
-    size = (wc * f, hc * f)
-    value = cv2.resize(np.where(known, t, 0.0), size, interpolation=cv2.INTER_LINEAR)[:h, :wd]
-    weight = cv2.resize(known.astype(np.float64), size, interpolation=cv2.INTER_LINEAR)[:h, :wd]
-    out[reach] = value[reach] / np.maximum(weight[reach], 1e-12)
+    # Only the blocks round the open ones are resized (a block more each side, so that every open cell's
+    # interpolation reads the same blocks as over the whole floor; a whole number of blocks off, the same
+    # weights: the same values to the bit).
+    rows, cols = np.flatnonzero(open_blocks.any(axis=1)), np.flatnonzero(open_blocks.any(axis=0))
+    b0, b1 = max(int(rows[0]) - 1, 0), min(int(rows[-1]) + 2, hc)
+    a0, a1 = max(int(cols[0]) - 1, 0), min(int(cols[-1]) + 2, wc)
+    r0, r1, c0, c1 = b0 * f, min(b1 * f, h), a0 * f, min(a1 * f, wd)
+    known = np.isfinite(t[b0:b1, a0:a1])
+    size = ((a1 - a0) * f, (b1 - b0) * f)
+    value = cv2.resize(np.where(known, t[b0:b1, a0:a1], 0.0), size, interpolation=cv2.INTER_LINEAR)
+    weight = cv2.resize(known.astype(np.float64), size, interpolation=cv2.INTER_LINEAR)
+    np.divide(value[:r1 - r0, :c1 - c0], np.maximum(weight[:r1 - r0, :c1 - c0], 1e-12), out=out[r0:r1, c0:c1],
+              where=reach[r0:r1, c0:c1])
     return out
