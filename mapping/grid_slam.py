@@ -266,9 +266,10 @@ class GridSlam:
         rung = SLIP_SCALES.index(self.odom_scale)
         best, best_scale = tight, self.odom_scale
         for k in (rung - 1, rung + 1):
-            if 0 <= k < len(SLIP_SCALES):
+            margin = SLIP_RETURN if k < rung else SLIP_MARGIN
+            # A score is a mean of field values, none above 1: a match that good leaves no rung room to win.
+            if 0 <= k < len(SLIP_SCALES) and best.score + margin <= 1.0 + 1e-6:
                 other = self.matcher.match(self.reference, points, self._predict(odom_pose, SLIP_SCALES[k]), max_range)
-                margin = SLIP_RETURN if k < rung else SLIP_MARGIN
                 if other.ok and other.score >= best.score + margin:
                     best, best_scale = other, SLIP_SCALES[k]
         return best, best_scale
