@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from homing.mapping.landmark_slam import LandmarkSlam, interpolate_pose
+from homing.mapping.landmark_slam import TAG_YAW_SIGMA, LandmarkSlam, interpolate_pose
 from homing.robot import Pose2
 
 
@@ -62,10 +62,24 @@ def ate(est: list[Pose2], truth: list[Pose2]) -> float:
     return float(np.sqrt(np.mean(np.sum((A @ R.T + t - B) ** 2, axis=1))))
 
 
-def mean_pose(poses: list[Pose2]) -> Pose2:
-    """Mean position [m] and circular-mean heading [rad] of ``poses`` (a tag placed by several sightings)."""
-    xs = np.array([[p.x, p.y, math.cos(p.theta), math.sin(p.theta)] for p in poses]).mean(0)
-    return Pose2(float(xs[0]), float(xs[1]), math.atan2(xs[3], xs[2]))
+def mean_pose(poses: list[Pose2], weights: list[float] | None = None) -> Pose2:
+    """Mean position [m] and circular-mean heading [rad] of ``poses`` (a tag placed by several sightings), the
+    headings weighted by ``weights`` (default: alike)."""
+    xy = np.array([[p.x, p.y] for p in poses]).mean(0)
+    w = np.ones(len(poses)) if weights is None else np.asarray(weights, float)
+    c = float(np.dot(w, [math.cos(p.theta) for p in poses]))
+    s = float(np.dot(w, [math.sin(p.theta) for p in poses]))
+    return Pose2(float(xy[0]), float(xy[1]), math.atan2(s, c))
+
+
+def heading_weight(m: Any) -> float:
+    """How much a sighting's heading counts when the baselines average a tag's sightings: its inverse variance,
+    a heading from the tag's own corners taken as no surer than GTSAM takes it (``TAG_YAW_SIGMA``: weak, and now
+    and then the mirrored pose), one from the wall behind it as measured — the same care as the pose graph's."""
+    var = float(np.asarray(m.covariance)[2, 2])
+    if getattr(m, "yaw_source", "tag") != "wall":
+        var = max(var, TAG_YAW_SIGMA**2)
+    return 1.0 / max(var, 1e-12)
 
 
 @dataclass
@@ -83,6 +97,7 @@ class Collector:
     grid_history: list[tuple[float, Pose2]] = field(default_factory=list)
     placed_odom: dict[int, list[Pose2]] = field(default_factory=dict)
     placed_grid: dict[int, list[Pose2]] = field(default_factory=dict)
+    heading_weights: dict[int, list[float]] = field(default_factory=dict)  # per placed sighting (heading_weight)
     keyframe_truth: list[Pose2] = field(default_factory=list)
     world_from_odom0: Pose2 | None = None
     external: bool = False  # tags, grid pose and SLAM come from a mission's services (see step_external)
@@ -125,13 +140,15 @@ class Collector:
         for m in tags:
             self.placed_odom.setdefault(m.tag_id, []).append(interpolate_pose(self.history, m.stamp).compose(m.pose))
             self.placed_grid.setdefault(m.tag_id, []).append(interpolate_pose(self.grid_history, m.stamp).compose(m.pose))
+            self.heading_weights.setdefault(m.tag_id, []).append(heading_weight(m))
 
     def result(self, true_tags: dict[int, Pose2]) -> dict[str, float]:
         self.slam.flush()
         est = self.slam.landmarks()
         g = tag_errors(est, true_tags, self.dock_id)
-        gr = tag_errors({k: mean_pose(v) for k, v in self.placed_grid.items()}, true_tags, self.dock_id)
-        od = tag_errors({k: mean_pose(v) for k, v in self.placed_odom.items()}, true_tags, self.dock_id)
+        w = self.heading_weights
+        gr = tag_errors({k: mean_pose(v, w[k]) for k, v in self.placed_grid.items()}, true_tags, self.dock_id)
+        od = tag_errors({k: mean_pose(v, w[k]) for k, v in self.placed_odom.items()}, true_tags, self.dock_id)
         return {
             "gtsam_total_m": g["dock_total_m"], "grid_total_m": gr["dock_total_m"], "odom_total_m": od["dock_total_m"],
             "gtsam_mean_m": g["dock_mean_m"], "grid_mean_m": gr["dock_mean_m"], "odom_mean_m": od["dock_mean_m"],
