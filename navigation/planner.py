@@ -534,7 +534,7 @@ def distance_map(costmap: Costmap, start: Pose2 | tuple[float, float],
     hc, wc = -(-h // f), -(-wd // f)
     blocks = np.zeros((hc * f, wc * f), bool)
     blocks[:h, :wd] = reach
-    open_blocks = blocks.reshape(hc, f, wc, f).any(axis=(1, 3))
+    open_blocks = np.asarray(blocks.reshape(hc, f, wc, f).any(axis=(1, 3)))
     # The start's block, and the start as a point in block coordinates (block centres at integers).
     t = _march(np.where(open_blocks, 1.0, np.inf), (s[0] // f, s[1] // f), speed=False,
                exact=((exact[0] + 0.5) / f - 0.5, (exact[1] + 0.5) / f - 0.5)) * (f * costmap.resolution)
