@@ -34,7 +34,11 @@ such, not as explored, and may :meth:`Explorer.forgive` them to try again;
 a place given up again on ``RETRY_ROUNDS`` retry rounds no longer keeps
 exploration incomplete: measured on the map, a way to it narrower than the
 robot gives it up for good (the reason gives the width), one the robot
-fits defers it to a later round (after 2, 4, 8… more rounds).
+fits defers it to a later round (after 2, 4, 8… more rounds). "For good"
+holds while the map says so: every new round measures those ways in again
+on the current map (a door opened, a parcel taken away, once the lidar has
+seen it), and a place the robot now fits leaves the blacklist, its reason's
+history kept for the end report (``…; way in now ≥ 0.40 m, the robot fits``).
 
 A site the costmap still reaches but the strategy declined (too small for its rule) is
 visited anyway: the robot stands against it, or for a door seen only at a
@@ -63,7 +67,7 @@ import cv2
 import numpy as np
 from homing.mapping.frontier import OCCUPIED_AT
 from homing.mapping.grid import OccupancyGrid
-from homing.mapping.navigable import way_in
+from homing.mapping.navigable import ways_in
 from homing.mapping.reachable import (
     PEEK,
     FrontierReport,
@@ -87,6 +91,8 @@ MAX_ARRIVALS = 2  # a place reached this often with its frontier still there is 
 LOOKED_AT = "not_cleared"  # the one reason a place is given up after the robot stood at it and looked
 RETRY_ROUNDS = 2  # rounds a place given up before the robot looked at it is tried again, before it is given up for good
 CUT_OFF_TRIES = 4  # failures in a row on frontiers the costmap cuts off before they are given up (one recovery round)
+NARROW = "narrower than the robot"  # the mark of a place given up for good by its width (measured again each round)
+REOPENED_KEPT = 20  # places whose way in was measured open again, kept with their reasons for the end report
 
 
 @dataclass(frozen=True)
@@ -134,6 +140,8 @@ class Explorer:
         self.round = 0  # starts of exploration after the first (new_round)
         self.deferred: dict[tuple[float, float], int] = {}  # places given up on every retry round the robot fits
         # the way to, and the round they are tried again in
+        self.reopened: list[GivenUp] = []  # places given up as narrower than the robot, measured open since
+        # (the latest REOPENED_KEPT), their reasons' history ("…; way in now ≥ 0.40 m, the robot fits")
         self._best_distance = math.inf
         self._best_travel = math.inf  # the navigator's path length to the goal, the least so far [m]
         self._last_progress = 0.0
@@ -198,36 +206,72 @@ class Explorer:
         reason = f"{why}, {n} rounds"
         if grid is None or pose is None:
             return reason
+        ((width, fits),) = self._ways_in(grid, pose, [(x, y)])
+        if not fits:
+            return f"{reason}; way in {width:.2f} m, {NARROW}"
+        due = self.round + 2 ** (n - RETRY_ROUNDS)
+        self.deferred[(x, y)] = due
+        return f"{reason}; the robot fits the way in: tried again in round {due}"
+
+    def _ways_in(self, grid: OccupancyGrid, pose: Pose2,
+                 places: list[tuple[float, float]]) -> list[tuple[float, bool]]:
+        """The way in to each place (x, y) [m] (the cells within ``blacklist_radius``) from ``pose`` on ``grid``,
+        walls alone blocking: its width [m] and whether the robot fits (:func:`homing.mapping.navigable.ways_in`)."""
         res = grid.resolution
         h, w = grid.shape
         sr, sc = grid.world_to_cell(pose.x, pose.y)
         start = (int(np.clip(sr, 0, h - 1)), int(np.clip(sc, 0, w - 1)))
         rows, cols = np.ogrid[:h, :w]
-        pr, pc = grid.world_to_cell(x, y)
-        place = (rows - int(pr)) ** 2 + (cols - int(pc)) ** 2 <= (self.blacklist_radius / res) ** 2
-        width, fits = way_in(grid.data < OCCUPIED_AT, res, start, place, self.robot_radius)
-        if not fits:
-            return f"{reason}; way in {width:.2f} m, narrower than the robot"
-        due = self.round + 2 ** (n - RETRY_ROUNDS)
-        self.deferred[(x, y)] = due
-        return f"{reason}; the robot fits the way in: tried again in round {due}"
+        masks = []
+        for x, y in places:
+            pr, pc = grid.world_to_cell(x, y)
+            masks.append((rows - int(pr)) ** 2 + (cols - int(pc)) ** 2 <= (self.blacklist_radius / res) ** 2)
+        return ways_in(grid.data < OCCUPIED_AT, res, start, masks, self.robot_radius)
+
+    def remeasure(self, grid: OccupancyGrid, pose: Pose2) -> int:
+        """Measure again, on ``grid`` from ``pose``, the way in to every place given up for good as narrower than
+        the robot (a door opened since, a parcel taken away, once the lidar has seen it): one the robot now fits
+        leaves the blacklist, its reason's history kept in :attr:`reopened` (``…; way in now ≥ 0.40 m, the
+        robot fits``) and its retry rounds counted afresh. Returns how many left. Cost: two distance transforms
+        and one labelling of the grid for all of them, and a bottleneck search (a few labellings) for each."""
+        narrow = [i for i, why in enumerate(self.blacklist_reasons) if why.endswith(NARROW)]
+        if not narrow:
+            return 0
+        opened = set()
+        for i, (width, fits) in zip(narrow, self._ways_in(grid, pose, [self.blacklist[i] for i in narrow]),
+                                    strict=True):
+            if fits:
+                x, y = self.blacklist[i]
+                why = f"{self.blacklist_reasons[i]}; way in now ≥ {width:.2f} m, the robot fits"
+                self.reopened.append(GivenUp(x, y, 0.0, why))
+                self.rounds = [r for r in self.rounds if math.hypot(r[0] - x, r[1] - y) > self.blacklist_radius]
+                opened.add(i)
+        del self.reopened[:-REOPENED_KEPT]
+        self._drop(opened)
+        return len(opened)
+
+    def _drop(self, indices: set[int]) -> None:
+        """Take the blacklist's points at ``indices`` off it, to be tried again: the current goal is chosen anew."""
+        if not indices:
+            return
+        keep = [i for i in range(len(self.blacklist)) if i not in indices]
+        self.blacklist = [self.blacklist[i] for i in keep]
+        self.blacklist_reasons = [self.blacklist_reasons[i] for i in keep]
+        self.cut_offs, self.goal, self.choice, self._declined = 0, None, None, None
 
     def new_round(self, grid: OccupancyGrid | None = None, pose: Pose2 | None = None,
                   incomplete: bool = False) -> int:
-        """A new start of exploration (a recovery round, the persistent mission's next round): after an
-        incomplete end every place given up is tried again (:meth:`forgive`), and places deferred to this round
-        are, whatever the end; returns how many were forgiven."""
+        """A new start of exploration (a recovery round, the persistent mission's next round): places given up
+        as narrower than the robot are measured again (:meth:`remeasure`), after an incomplete end every place
+        given up is tried again (:meth:`forgive`), and places deferred to this round are, whatever the end;
+        returns how many were forgiven."""
         self.round += 1
-        forgiven = self.forgive(grid, pose) if incomplete else 0
-        due = {p for p, r in self.deferred.items() if r <= self.round}
-        if due:
-            kept = [(p, why) for p, why in zip(self.blacklist, self.blacklist_reasons, strict=True) if p not in due]
-            forgiven += len(self.blacklist) - len(kept)
-            self.blacklist = [p for p, _ in kept]
-            self.blacklist_reasons = [why for _, why in kept]
-            self.deferred = {p: r for p, r in self.deferred.items() if p not in due}
-            self.cut_offs, self.goal, self.choice, self._declined = 0, None, None, None
-        return forgiven
+        forgiven = self.remeasure(grid, pose) if grid is not None and pose is not None else 0
+        forgiven += self.forgive(grid, pose) if incomplete else 0
+        due = {i for i, p in enumerate(self.blacklist) if self.deferred.get(p, math.inf) <= self.round}
+        self.deferred = {p: r for p, r in self.deferred.items() if r > self.round}
+        self._drop(due)
+        return forgiven + len(due)
 
     def given_up(self) -> tuple[GivenUp, ...]:
         """The places given up so far (blacklisted), with why; narrow gaps are in :attr:`report`."""
@@ -235,10 +279,14 @@ class Explorer:
                                                                     strict=True))
 
     def end_message(self) -> str:
-        """How exploration ended: the robot's coverage estimate and the frontiers given up, and why."""
+        """How exploration ended: the robot's coverage estimate and the frontiers given up, and why; and the
+        places given up as too narrow whose way in was measured open later."""
         if self.report is None:
             return "no frontier left"
-        return self.report.summary(self.given_up())
+        text = self.report.summary(self.given_up())
+        if self.reopened:
+            text += "; tried again: " + ", ".join(f"({g.x:.1f}, {g.y:.1f}) {g.reason}" for g in self.reopened)
+        return text
 
     def update(self, grid: OccupancyGrid, pose: Pose2, distance: np.ndarray | Callable[[], np.ndarray], now: float,
                travel: float | None = None) -> ExploreStep:
