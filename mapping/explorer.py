@@ -213,8 +213,8 @@ class Explorer:
         self.deferred[(x, y)] = due
         return f"{reason}; the robot fits the way in: tried again in round {due}"
 
-    def _ways_in(self, grid: OccupancyGrid, pose: Pose2,
-                 places: list[tuple[float, float]]) -> list[tuple[float, bool]]:
+    def _ways_in(self, grid: OccupancyGrid, pose: Pose2, places: list[tuple[float, float]],
+                 narrow_widths: bool = True) -> list[tuple[float, bool]]:
         """The way in to each place (x, y) [m] (the cells within ``blacklist_radius``) from ``pose`` on ``grid``,
         walls alone blocking: its width [m] and whether the robot fits (:func:`homing.mapping.navigable.ways_in`)."""
         res = grid.resolution
@@ -226,19 +226,19 @@ class Explorer:
         for x, y in places:
             pr, pc = grid.world_to_cell(x, y)
             masks.append((rows - int(pr)) ** 2 + (cols - int(pc)) ** 2 <= (self.blacklist_radius / res) ** 2)
-        return ways_in(grid.data < OCCUPIED_AT, res, start, masks, self.robot_radius)
+        return ways_in(grid.data < OCCUPIED_AT, res, start, masks, self.robot_radius, narrow_widths)
 
     def remeasure(self, grid: OccupancyGrid, pose: Pose2) -> int:
         """Measure again, on ``grid`` from ``pose``, the way in to every place given up for good as narrower than
         the robot (a door opened since, a parcel taken away, once the lidar has seen it): one the robot now fits
         leaves the blacklist, its reason's history kept in :attr:`reopened` (``…; way in now ≥ 0.40 m, the
         robot fits``) and its retry rounds counted afresh. Returns how many left. Cost: two distance transforms
-        and one labelling of the grid for all of them, and a bottleneck search (a few labellings) for each."""
+        and one labelling of the grid for all of them (floor:1 at 5 cm, 0.9 M cells: 60 ms, 140 ms for 20)."""
         narrow = [i for i, why in enumerate(self.blacklist_reasons) if why.endswith(NARROW)]
         if not narrow:
             return 0
         opened = set()
-        for i, (width, fits) in zip(narrow, self._ways_in(grid, pose, [self.blacklist[i] for i in narrow]),
+        for i, (width, fits) in zip(narrow, self._ways_in(grid, pose, [self.blacklist[i] for i in narrow], False),
                                     strict=True):
             if fits:
                 x, y = self.blacklist[i]

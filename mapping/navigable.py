@@ -140,22 +140,29 @@ def way_in(free: np.ndarray, resolution: float, start: tuple[int, int], place: n
 
 
 def ways_in(free: np.ndarray, resolution: float, start: tuple[int, int], places: list[np.ndarray],
-            robot_radius: float = FOOTPRINT_RADIUS) -> list[tuple[float, bool]]:
+            robot_radius: float = FOOTPRINT_RADIUS, narrow_widths: bool = True) -> list[tuple[float, bool]]:
     """:func:`way_in` to each of several places at about the cost of one: the distance transforms and the region
-    the robot's centre reaches are shared; a bottleneck search (a few labellings of the grid) per place."""
+    the robot's centre reaches are shared, a way the robot fits through costs nothing more, and a narrower one
+    a bottleneck search (a few labellings of the grid) — or nothing, width ``nan``, without ``narrow_widths``."""
     fits = free & centre_fits(~free, resolution, robot_radius)
     if not fits.any():
         return [(0.0, False)] * len(places)
     r_cells = inscribed_radius(resolution, robot_radius) / resolution
     clearance = distance_cells(free)  # [cells] to the nearest cell that is not free
     region = _component_at(fits, start)
+    # Every cell of the region clears more than r_cells: through it the bottleneck is the cap itself.
+    cap = float(clearance[(clearance > 0) & (clearance <= r_cells)].max(initial=0.0))
     out = []
     for place in places:
         if not (place & free).any():
             out.append((0.0, False))
-            continue
-        t = _bottleneck(clearance, region, place & free, r_cells)
-        out.append((max(0.0, (2.0 * t - 0.5) * resolution), bool(region[place].any())))
+        elif region[place].any():
+            out.append((max(0.0, (2.0 * cap - 0.5) * resolution), True))
+        elif narrow_widths:
+            t = _bottleneck(clearance, region, place & free, r_cells)
+            out.append((max(0.0, (2.0 * t - 0.5) * resolution), False))
+        else:
+            out.append((math.nan, False))
     return out
 
 
