@@ -437,3 +437,35 @@ def test_a_place_given_up_as_too_narrow_is_measured_again_each_round_and_tried_o
     ex.report = frontier_report(opened, (pose.x, pose.y))
     assert f"tried again: (6.0, 2.0) {again.reason}" in ex.end_message()
     assert ex.new_round(opened, pose) == 0 and len(ex.reopened) == 1  # nothing left to measure
+
+
+def test_the_leaf_tries_a_place_given_up_as_too_narrow_once_the_map_shows_its_way_open() -> None:
+    # The Explore leaf on its next start (the persistent mission's next round): a room behind a doorway once
+    # measured 0.30 m wide, its frontier given up for good; the map now shows the doorway 0.80 m wide (a door
+    # opened, seen on the patrol). Without measuring again it would say "explored" at once.
+    from homing.mapping.explorer import NARROW, REOPENED_KEPT
+
+    def room_behind(gap: float) -> OccupancyGrid:
+        grid = _wall_with_gap(gap)
+        grid.data[10:70, 100:150] = UNKNOWN  # the room beyond the wall, unseen
+        return grid
+
+    narrow, opened = room_behind(0.30), room_behind(0.80)
+    pose = Pose2(1.0, 2.0, 0.0)
+    nav = _FailingNavigator(narrow, NoPathFound("no free path"))
+    bb = _board(narrow, nav, pose)
+    robot = _Robot()
+    leaf = Explore("Explore", strategy="nearest")
+    leaf.setup(robot=robot, seed=0)
+    assert _tick(leaf, robot) == Status.SUCCESS and not nav.goals  # behind a 0.30 m gap: nothing to go to
+    ex = leaf.explorer
+    (site,) = frontier_report(opened, (pose.x, pose.y)).reachable
+    ex._blacklist_site(site, opened, f"no_path, 3 rounds; way in 0.30 m, {NARROW}")  # given up for good then
+    points = len(ex.blacklist)
+    bb.set("/map/grid", opened)
+    nav.costmap.update_static(opened)
+    assert _tick(leaf, robot) == Status.RUNNING and len(nav.goals) == 1  # started again: goes for the room
+    assert nav.goals[0].x > 4.0 and not ex.blacklist
+    assert len(ex.reopened) == min(points, REOPENED_KEPT)  # the latest, with their reasons' history
+    assert all(g.reason.endswith("way in 0.30 m, narrower than the robot; way in now ≥ 0.40 m, the robot fits")
+               for g in ex.reopened)
