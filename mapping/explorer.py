@@ -26,7 +26,9 @@ Shared by every strategy, so that they differ only in their rule:
 no goal, the map itself is asked which frontiers the robot could reach with
 its footprint from where it is, whatever the costmap says. None left but
 those behind gaps narrower than the robot: done, with the robot's coverage
-estimate and the gaps; the same when the others were given up after the
+estimate and the gaps, each with the width of its way in measured between
+walls through the known free space the lidar saw it through
+(``narrower_than_robot (way in 0.28 m)``); the same when the others were given up after the
 robot stood at them and looked (``not_cleared``: the lidar cannot see in).
 Frontiers given up before it looked (no progress, unreachable, cut off…):
 done *incomplete* (``ExploreStep.gave_up`` > 0) — the caller reports it as
@@ -59,6 +61,7 @@ adapter's clock).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -80,7 +83,7 @@ from homing.mapping.strategies import GoalChoice, GoalContext, GoalStrategy
 from homing.robot import Pose2
 from homing.robot.turtlebot import BASE_RADIUS, FOOTPRINT_RADIUS
 
-from homing.map_server import UNKNOWN
+from homing.map_server import FREE, UNKNOWN
 
 REACH_RADIUS = 2 * BASE_RADIUS  # [m] about one robot diameter (thesis)
 PROGRESS_TIMEOUT = 30.0  # [s] explore_lite's progress_timeout
@@ -132,6 +135,7 @@ class Explorer:
         self.blacklist_reasons: list[str] = []  # why each blacklist point was given up
         self.arrivals: list[tuple[float, float]] = []  # goals reached, (x, y) [m] in map
         self.report: FrontierReport | None = None  # the map's verdict at the last "no goal"
+        self.narrow_widths: tuple[float, ...] = ()  # [m] the way in to each of its narrow frontiers, at the end
         self.cut_offs = 0  # "no goal" verdicts in a row with frontiers the costmap cuts off
         self._declined: FrontierSite | None = None  # the site the current goal visits though the strategy declined it
         self.goals_chosen = 0
@@ -218,15 +222,24 @@ class Explorer:
         """The way in to each place (x, y) [m] (the cells within ``blacklist_radius``) from ``pose`` on ``grid``,
         walls alone blocking: its width [m] and whether the robot fits (:func:`homing.mapping.navigable.ways_in`)."""
         res = grid.resolution
-        h, w = grid.shape
-        sr, sc = grid.world_to_cell(pose.x, pose.y)
-        start = (int(np.clip(sr, 0, h - 1)), int(np.clip(sc, 0, w - 1)))
-        rows, cols = np.ogrid[:h, :w]
+        rows, cols = np.ogrid[:grid.shape[0], :grid.shape[1]]
         masks = []
         for x, y in places:
             pr, pc = grid.world_to_cell(x, y)
             masks.append((rows - int(pr)) ** 2 + (cols - int(pc)) ** 2 <= (self.blacklist_radius / res) ** 2)
-        return ways_in(grid.data < OCCUPIED_AT, res, start, masks, self.robot_radius, narrow_widths)
+        return ways_in(grid.data < OCCUPIED_AT, res, _cell_of(grid, pose), masks, self.robot_radius, narrow_widths)
+
+    def _measure_narrow(self, grid: OccupancyGrid, pose: Pose2, report: FrontierReport) -> None:
+        """The width [m] of the way in to each of ``report``'s narrow frontiers through known free space (where
+        the lidar saw the gap), between walls: the reason a person can check (:attr:`narrow_widths`)."""
+        masks = []
+        for site in report.narrow:
+            mask = np.zeros(grid.shape, bool)
+            mask[site.cells[:, 0], site.cells[:, 1]] = True
+            masks.append(mask)
+        measured = ways_in(grid.data < OCCUPIED_AT, grid.resolution, _cell_of(grid, pose), masks, self.robot_radius,
+                           known=grid.data == FREE)
+        self.narrow_widths = tuple(width for width, _ in measured)
 
     def remeasure(self, grid: OccupancyGrid, pose: Pose2) -> int:
         """Measure again, on ``grid`` from ``pose``, the way in to every place given up for good as narrower than
@@ -283,7 +296,12 @@ class Explorer:
         places given up as too narrow whose way in was measured open later."""
         if self.report is None:
             return "no frontier left"
-        text = self.report.summary(self.given_up())
+        narrow: tuple[GivenUp, ...] = ()
+        if len(self.narrow_widths) == len(self.report.narrow):  # measured at the end (else said as they are)
+            narrow = tuple(GivenUp(s.x, s.y, s.length, f"narrower_than_robot (way in {w:.2f} m)")
+                           for s, w in zip(self.report.narrow, self.narrow_widths, strict=True))
+        text = dataclasses.replace(self.report, narrow=() if narrow else self.report.narrow).summary(
+            (*narrow, *self.given_up()))
         if self.reopened:
             text += "; tried again: " + ", ".join(f"({g.x:.1f}, {g.y:.1f}) {g.reason}" for g in self.reopened)
         return text
@@ -351,11 +369,12 @@ class Explorer:
         open_sites = [s for s in report.reachable
                       if not site_blacklisted(s, grid, self.blacklist, self.blacklist_radius)]
         report = report.given_up(len(open_sites))
-        self.report = report
+        self.report, self.narrow_widths = report, ()
         if not open_sites or getattr(self.strategy, "ends_without_goal", False):
             looked = [p for p, why in zip(self.blacklist, self.blacklist_reasons, strict=True) if settled(why)]
             unlooked = sum(site_blacklisted(s, grid, self.blacklist, self.blacklist_radius)
                            and not site_blacklisted(s, grid, looked, self.blacklist_radius) for s in report.reachable)
+            self._measure_narrow(grid, pose, report)
             return ExploreStep(None, True, True, None, report=report, gave_up=int(unlooked))
         ctx = self._context(grid, pose, distance)
         # Stand where the footprint touches the site (a peek site: within PEEK of it, to look).
@@ -458,6 +477,13 @@ def settled(reason: str) -> bool:
     where it is, or it was given up again on every retry round (:meth:`Explorer.forgive`: for good, or deferred to
     a later round)."""
     return reason == LOOKED_AT or " rounds" in reason
+
+
+def _cell_of(grid: OccupancyGrid, pose: Pose2) -> tuple[int, int]:
+    """The grid cell (row, col) the robot stands in (clipped to the grid)."""
+    h, w = grid.shape
+    sr, sc = grid.world_to_cell(pose.x, pose.y)
+    return int(np.clip(sr, 0, h - 1)), int(np.clip(sc, 0, w - 1))
 
 
 def _beside(distance: np.ndarray, robot_radius: float, resolution: float) -> np.ndarray:

@@ -140,15 +140,21 @@ def way_in(free: np.ndarray, resolution: float, start: tuple[int, int], place: n
 
 
 def ways_in(free: np.ndarray, resolution: float, start: tuple[int, int], places: list[np.ndarray],
-            robot_radius: float = FOOTPRINT_RADIUS, narrow_widths: bool = True) -> list[tuple[float, bool]]:
+            robot_radius: float = FOOTPRINT_RADIUS, narrow_widths: bool = True,
+            known: np.ndarray | None = None) -> list[tuple[float, bool]]:
     """:func:`way_in` to each of several places at about the cost of one: the distance transforms and the region
     the robot's centre reaches are shared, a way the robot fits through costs nothing more, and a narrower one
-    a bottleneck search (a few labellings of the grid) — or nothing, width ``nan``, without ``narrow_widths``."""
+    a bottleneck search (a few labellings of the grid) — or nothing, width ``nan``, without ``narrow_widths``.
+    ``known`` (H, W) bool: the cells a way may go through, when fewer than ``free`` (a map's known free space:
+    widths are still measured between what is not ``free``)."""
     fits = free & centre_fits(~free, resolution, robot_radius)
+    clearance = distance_cells(free)  # [cells] to the nearest cell that is not free
+    if known is not None:
+        fits &= known
+        clearance = np.where(known, clearance, 0.0)
     if not fits.any():
         return [(0.0, False)] * len(places)
     r_cells = inscribed_radius(resolution, robot_radius) / resolution
-    clearance = distance_cells(free)  # [cells] to the nearest cell that is not free
     region = _component_at(fits, start)
     # Every cell of the region clears more than r_cells: through it the bottleneck is the cap itself.
     cap = float(clearance[(clearance > 0) & (clearance <= r_cells)].max(initial=0.0))

@@ -62,8 +62,9 @@ def test_a_room_given_up_behind_a_doorway_too_narrow_in_the_first_session_is_map
         assert leaf.explorer is not None and leaf.explorer.report is not None
         world_from_map = world.dock_pose
         first.update(t=runner.now, mapped=mapped(runner), report=leaf.end_report(),
-                     narrow=[world_from_map.transform_points(np.array([[s.x, s.y]]))[0]
-                             for s in leaf.explorer.report.narrow])
+                     narrow=[(*world_from_map.transform_points(np.array([[s.x, s.y]]))[0], width)
+                             for s, width in zip(leaf.explorer.report.narrow, leaf.explorer.narrow_widths,
+                                                 strict=True)])
         robot.changes = tuple(dataclasses.replace(ch, end=runner.now) if ch == ajar else ch for ch in robot.changes)
 
     log, robot, runner = live(world, until=1800.0, seed=1, overrides={"session": "300 s", "rest": "60 s"},
@@ -71,10 +72,12 @@ def test_a_room_given_up_behind_a_doorway_too_narrow_in_the_first_session_is_map
                               on_tick=after_first_session)
     try:
         assert first, "the robot never came back to its dock"
-        # The first session gave the room up, and said why: frontiers in it behind a gap narrower than the robot.
+        # The first session gave the room up, and said why: frontiers in it behind a gap narrower than the robot,
+        # the gap measured on its map as the door left it.
         assert first["mapped"] < 0.3, first
-        assert "narrower_than_robot" in first["report"], first["report"]
-        assert any(x0 < x < x1 and y0 < y < y1 for x, y in first["narrow"]), first
+        assert "narrower_than_robot (way in " in first["report"], first["report"]
+        in_room = [width for x, y, width in first["narrow"] if x0 < x < x1 and y0 < y < y1]
+        assert in_room and all(w == pytest.approx(0.28, abs=0.1) for w in in_room), first["narrow"]
         # Later rounds: the patrol sees the doorway open, the next round's exploration goes in and maps the room.
         assert log.cycles == 3 and robot.charging
         assert "Exploring" in [s for t, s in log.states if t > first["t"]]
