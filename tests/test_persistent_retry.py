@@ -28,13 +28,14 @@ def test_a_room_given_up_behind_a_doorway_too_narrow_in_the_first_session_is_map
     # The lab's east room has two ways in: the doorway at the partition's north end (y 7.0-8.2 m) and the strip
     # north of the kayaks. A door shut for good across the strip's west end leaves the doorway the only way in;
     # a door left ajar there during the first session leaves 0.28 m of it, which the lidar sees through and
-    # the robot (0.38 m) cannot pass. It opens when the robot is back on its dock after that session.
+    # the robot (0.35 m across) cannot pass. It opens when the robot is back on its dock after that session.
     shut = Change("door", 0.0, math.inf, 5.2, 9.275, 0.0, (0.08, 1.45))
     ajar = Change("door", 0.0, math.inf, 6.075, 7.46, 0.0, (0.08, 0.92))
     # The room's navigable truth once the door is open (the rule the benchmarks score on).
     standing = rasterise(world.map, [shut])
     free = ~solid_mask(standing)
-    nav = navigable(free, standing.resolution, standing.origin[:2], (world.dock_pose.x, world.dock_pose.y + 1.0))
+    staging = world.staging_pose(1.0)
+    nav = navigable(free, standing.resolution, standing.origin[:2], (staging.x, staging.y))
     rows, cols = np.nonzero(nav.mask)
     xs = standing.origin[0] + (cols + 0.5) * standing.resolution
     ys = standing.origin[1] + (rows + 0.5) * standing.resolution
