@@ -36,7 +36,9 @@ report, ``/explore/explored`` stays False, and the next start of the leaf
 (a recovery round, or the persistent mission's next round) tries them
 again, up to ``RETRY_ROUNDS`` times each (:meth:`Explorer.forgive`); then, measured on
 the map, a place behind a way narrower than the robot is given up for good, and one the robot fits the way
-to is deferred to a later round (:meth:`Explorer.new_round`). Frontiers it could reach but the costmap cuts off end the leaf
+to is deferred to a later round (:meth:`Explorer.new_round`); every start measures the ways in to places given
+up as too narrow again on the map as it is, and tries those the robot now fits (:meth:`Explorer.remeasure`: a
+door opened since). Frontiers it could reach but the costmap cuts off end the leaf
 with FAILURE ``frontier_cut_off`` (or ``frontier_not_cleared``) for the
 recoveries; after a round of them those frontiers are given up.
 """
@@ -153,7 +155,8 @@ class Explore(_ReportsFailure):
             return self.fail("no_navigator", "no navigation service (add 'navigation' to services)")
         if self.explorer is not None:
             # A later round (after a recovery, the persistent mission's next): after an incomplete end every place
-            # given up is tried again, and places deferred to this round are, whatever the end.
+            # given up is tried again, places deferred to this round are, whatever the end, and so are places
+            # given up as too narrow whose way in the map now shows open.
             self.explorer.new_round(self.read(GRID_KEY), self.read(POSE_KEY), self.incomplete)
         self.incomplete = False
         self._explorer()

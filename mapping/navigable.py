@@ -136,14 +136,40 @@ def way_in(free: np.ndarray, resolution: float, start: tuple[int, int], place: n
     """The widest way from the cell ``start`` (row, col) to the cells ``place`` (H, W) bool through ``free``
     (H, W) bool cells: its width [m], wall to wall, and whether the robot fits through it by the module's rule
     (then the width is only known to be at least the robot's: the search stops there)."""
+    return ways_in(free, resolution, start, [place], robot_radius)[0]
+
+
+def ways_in(free: np.ndarray, resolution: float, start: tuple[int, int], places: list[np.ndarray],
+            robot_radius: float = FOOTPRINT_RADIUS, narrow_widths: bool = True,
+            known: np.ndarray | None = None) -> list[tuple[float, bool]]:
+    """:func:`way_in` to each of several places at about the cost of one: the distance transforms and the region
+    the robot's centre reaches are shared, a way the robot fits through costs nothing more, and a narrower one
+    a bottleneck search (a few labellings of the grid) — or nothing, width ``nan``, without ``narrow_widths``.
+    ``known`` (H, W) bool: the cells a way may go through, when fewer than ``free`` (a map's known free space:
+    widths are still measured between what is not ``free``)."""
     fits = free & centre_fits(~free, resolution, robot_radius)
-    if not fits.any() or not (place & free).any():
-        return 0.0, False
-    r_cells = inscribed_radius(resolution, robot_radius) / resolution
     clearance = distance_cells(free)  # [cells] to the nearest cell that is not free
-    t = _bottleneck(clearance, _component_at(fits, start), place & free, r_cells)
-    wide = bool(_component_at(fits, start)[place].any())
-    return max(0.0, (2.0 * t - 0.5) * resolution), wide
+    if known is not None:
+        fits &= known
+        clearance = np.where(known, clearance, 0.0)
+    if not fits.any():
+        return [(0.0, False)] * len(places)
+    r_cells = inscribed_radius(resolution, robot_radius) / resolution
+    region = _component_at(fits, start)
+    # Every cell of the region clears more than r_cells: through it the bottleneck is the cap itself.
+    cap = float(clearance[(clearance > 0) & (clearance <= r_cells)].max(initial=0.0))
+    out = []
+    for place in places:
+        if not (place & free).any():
+            out.append((0.0, False))
+        elif region[place].any():
+            out.append((max(0.0, (2.0 * cap - 0.5) * resolution), True))
+        elif narrow_widths:
+            t = _bottleneck(clearance, region, place & free, r_cells)
+            out.append((max(0.0, (2.0 * t - 0.5) * resolution), False))
+        else:
+            out.append((math.nan, False))
+    return out
 
 
 def _component_at(mask: np.ndarray, cell: tuple[int, int]) -> np.ndarray:

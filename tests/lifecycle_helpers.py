@@ -36,11 +36,13 @@ class LifeLog:
 def live(world: Any, until: float, seed: int = 1, overrides: dict[str, Any] | None = None,
          stop_after_cycles: int | None = None, faults: tuple = (), mission: str | Path = "persistent",
          robot_kwargs: dict[str, Any] | None = None,
-         on_state: Callable[[str, int, float, SimRobot], None] | None = None) -> tuple[LifeLog, SimRobot, Runner]:
+         on_state: Callable[[str, int, float, SimRobot], None] | None = None,
+         on_tick: Callable[[Runner, SimRobot], None] | None = None) -> tuple[LifeLog, SimRobot, Runner]:
     """Tick ``mission`` on ``world`` for ``until`` [s] of simulated time (or ``stop_after_cycles`` dock cycles).
 
     ``on_state(state, cycles, time, robot)`` is called whenever the mission enters a state: a test injects a
     fault at the moment it means to test (the simulator's faults are data; adding one is the test's business).
+    ``on_tick(runner, robot)`` after every tick, for a test that looks at the robot's map or its leaves mid-run.
     """
     world = load_world(world) if isinstance(world, (str, Path)) else world
     robot = SimRobot(world, seed=seed, faults=list(faults), **(robot_kwargs or {}))
@@ -69,6 +71,8 @@ def live(world: Any, until: float, seed: int = 1, overrides: dict[str, Any] | No
         log.cycles = cycles
         if stop_after_cycles is not None and log.cycles >= stop_after_cycles:
             r.request_stop()  # the runner stops the robot and halts the tree, as on Ctrl-C
+        if on_tick is not None:
+            on_tick(r, robot)
 
     runner.on_tick = watch
     runner.run()

@@ -14,6 +14,7 @@ from homing.behaviours.explore import GOAL_KEY, Explore, NoFrontierLeft
 from homing.benchmarks.common import write_json
 from homing.benchmarks.explore import RunResult, load_runs, ratios, session_efficiency, summarise
 from homing.mapping.grid import OccupancyGrid
+from homing.mapping.reachable import frontier_report
 from homing.mapping.strategies import SETBACK
 from homing.navigation.costmap import Costmap
 from homing.navigation.navigator import NavFeedback, NavStatus, NoProgress, TooManyBumps
@@ -374,6 +375,16 @@ def test_a_sweep_resumed_keeps_the_runs_its_file_holds_and_runs_only_the_others(
     assert main(["bench", "explore", "--worlds", "lab", "--resume"]) == 2  # nothing to resume from
 
 
+def _wall_with_gap(gap: float) -> OccupancyGrid:
+    """An 8 m × 4 m room (origin at its corner) cut in two by a wall at x = 4 m with a ``gap`` [m] in it at y = 2 m."""
+    g = np.full((80, 160), FREE, dtype=np.int8)
+    g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = OCCUPIED
+    g[:, 80] = OCCUPIED  # a wall across, with a gap
+    half = int(round(gap / RES / 2))
+    g[40 - half:40 + half, 80] = FREE
+    return OccupancyGrid.from_map_data(MapData(g, RES, (0.0, 0.0, 0.0)))
+
+
 @pytest.mark.parametrize(("gap", "fits"), [(0.30, False), (0.80, True)])
 def test_a_place_given_up_on_every_retry_round_is_measured_on_the_map(gap: float, fits: bool) -> None:
     # A place given up again on every retry round: measured on the map from the robot, a way in narrower than the
@@ -381,12 +392,7 @@ def test_a_place_given_up_on_every_retry_round_is_measured_on_the_map(gap: float
     from homing.mapping.explorer import RETRY_ROUNDS, Explorer, settled
     from homing.mapping.strategies import make_strategy
 
-    g = np.full((80, 160), FREE, dtype=np.int8)
-    g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = OCCUPIED
-    g[:, 80] = OCCUPIED  # a wall across, with a gap
-    half = int(round(gap / RES / 2))
-    g[40 - half:40 + half, 80] = FREE
-    grid = OccupancyGrid.from_map_data(MapData(g, RES, (0.0, 0.0, 0.0)))
+    grid = _wall_with_gap(gap)
     ex = Explorer(make_strategy("nearest"))
     place = (6.0, 2.0)  # beyond the wall
     ex.blacklist, ex.blacklist_reasons = [place], ["no_path"]
@@ -400,3 +406,66 @@ def test_a_place_given_up_on_every_retry_round_is_measured_on_the_map(gap: float
         width = float(why.split("way in ")[1].split(" m")[0])
         assert "narrower than the robot" in why and not ex.deferred
         assert width == pytest.approx(gap, abs=2 * RES)
+
+
+def test_a_place_given_up_as_too_narrow_is_measured_again_each_round_and_tried_once_the_way_is_open() -> None:
+    # Given up for good behind a 0.30 m gap (a door left ajar, a parcel in the doorway): while the map still shows
+    # the gap, new rounds keep it given up; once the map shows the doorway open (0.80 m), the next round takes it
+    # off the blacklist, the reason's history kept for the end report, and its retry rounds start afresh.
+    from homing.mapping.explorer import RETRY_ROUNDS, Explorer, settled
+    from homing.mapping.strategies import make_strategy
+
+    pose, place = Pose2(1.0, 2.0, 0.0), (6.0, 2.0)
+    narrow = _wall_with_gap(0.30)
+    ex = Explorer(make_strategy("nearest"))
+    ex.blacklist, ex.blacklist_reasons = [place], ["no_path"]
+    ex.rounds = [(place[0], place[1], RETRY_ROUNDS)]
+    ex.forgive(narrow, pose)
+    (why,) = ex.blacklist_reasons
+    assert settled(why) and why.endswith("narrower than the robot")
+    for _ in range(3):  # the world has not changed: measured again, still too narrow
+        assert ex.new_round(narrow, pose) == 0 and ex.new_round(narrow, pose, incomplete=True) == 0
+        assert ex.blacklist == [place] and ex.blacklist_reasons == [why] and not ex.reopened
+    assert ex.new_round() == 0 and ex.blacklist == [place]  # no map to measure on: kept
+    opened = _wall_with_gap(0.80)
+    assert ex.new_round(opened, pose) == 1
+    assert ex.blacklist == [] and ex.rounds == []  # tried again, with its retry rounds counted afresh
+    (again,) = ex.reopened
+    assert (again.x, again.y) == place and again.reason.startswith(why + "; way in now ≥ ")
+    assert again.reason.endswith("m, the robot fits")
+    # The end report keeps the history.
+    ex.report = frontier_report(opened, (pose.x, pose.y))
+    assert f"tried again: (6.0, 2.0) {again.reason}" in ex.end_message()
+    assert ex.new_round(opened, pose) == 0 and len(ex.reopened) == 1  # nothing left to measure
+
+
+def test_the_leaf_tries_a_place_given_up_as_too_narrow_once_the_map_shows_its_way_open() -> None:
+    # The Explore leaf on its next start (the persistent mission's next round): a room behind a doorway once
+    # measured 0.30 m wide, its frontier given up for good; the map now shows the doorway 0.80 m wide (a door
+    # opened, seen on the patrol). Without measuring again it would say "explored" at once.
+    from homing.mapping.explorer import NARROW, REOPENED_KEPT
+
+    def room_behind(gap: float) -> OccupancyGrid:
+        grid = _wall_with_gap(gap)
+        grid.data[10:70, 100:150] = UNKNOWN  # the room beyond the wall, unseen
+        return grid
+
+    narrow, opened = room_behind(0.30), room_behind(0.80)
+    pose = Pose2(1.0, 2.0, 0.0)
+    nav = _FailingNavigator(narrow, NoPathFound("no free path"))
+    bb = _board(narrow, nav, pose)
+    robot = _Robot()
+    leaf = Explore("Explore", strategy="nearest")
+    leaf.setup(robot=robot, seed=0)
+    assert _tick(leaf, robot) == Status.SUCCESS and not nav.goals  # behind a 0.30 m gap: nothing to go to
+    ex = leaf.explorer
+    (site,) = frontier_report(opened, (pose.x, pose.y)).reachable
+    ex._blacklist_site(site, opened, f"no_path, 3 rounds; way in 0.30 m, {NARROW}")  # given up for good then
+    points = len(ex.blacklist)
+    bb.set("/map/grid", opened)
+    nav.costmap.update_static(opened)
+    assert _tick(leaf, robot) == Status.RUNNING and len(nav.goals) == 1  # started again: goes for the room
+    assert nav.goals[0].x > 4.0 and not ex.blacklist
+    assert len(ex.reopened) == min(points, REOPENED_KEPT)  # the latest, with their reasons' history
+    assert all(g.reason.endswith("way in 0.30 m, narrower than the robot; way in now ≥ 0.40 m, the robot fits")
+               for g in ex.reopened)

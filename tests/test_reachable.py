@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from homing.mapping.explorer import CUT_OFF_TRIES, Explorer
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.reachable import MIN_SITE, MIN_UNKNOWN, MIN_VIEW, VIEW, frontier_report
@@ -90,6 +91,9 @@ def test_a_gap_narrower_than_the_robot_is_reported_once_and_exploration_ends() -
         step = ex.update(grid, _pose(robot), dist, 0.0)
         assert step.done, name
         assert "narrower_than_robot" in ex.end_message() and "(4." in ex.end_message()
+        # with the way in measured where the lidar saw the gap: a reason a person can check
+        width = float(ex.end_message().split("narrower_than_robot (way in ")[1].split(" m")[0])
+        assert width == pytest.approx(gap, abs=2 * RES), name
     # The same wall with a 0.9 m door: the robot can go, and exploration is not over.
     g2 = _two_rooms(door=0.9, beyond_seen=0.6)
     assert len(frontier_report(_grid(g2), (_pose(robot).x, _pose(robot).y)).reachable) == 1
