@@ -272,6 +272,25 @@ class Explorer:
         self.blacklist_reasons = [self.blacklist_reasons[i] for i in keep]
         self.cut_offs, self.goal, self.choice, self._declined = 0, None, None, None
 
+    def _mapped(self, grid: OccupancyGrid) -> set[int]:
+        """The blacklist's points with no unknown cell of ``grid`` within ``blacklist_radius``."""
+        data, res = grid.data, grid.resolution
+        h, w = data.shape
+        n = int(math.ceil(self.blacklist_radius / res))
+        yy, xx = np.mgrid[-n : n + 1, -n : n + 1]
+        disc = xx * xx + yy * yy <= (self.blacklist_radius / res) ** 2
+        out = set()
+        for i, (x, y) in enumerate(self.blacklist):
+            r, c = (int(v) for v in grid.world_to_cell(x, y))
+            if not (0 <= r < h and 0 <= c < w):
+                continue
+            r0, c0 = max(r - n, 0), max(c - n, 0)
+            patch = data[r0 : r + n + 1, c0 : c + n + 1]
+            near = disc[r0 - (r - n) : r0 - (r - n) + patch.shape[0], c0 - (c - n) : c0 - (c - n) + patch.shape[1]]
+            if not (patch[near] == UNKNOWN).any():
+                out.add(i)
+        return out
+
     def new_round(self, grid: OccupancyGrid | None = None, pose: Pose2 | None = None,
                   incomplete: bool = False) -> int:
         """A new start of exploration (a recovery round, the persistent mission's next round): places given up
@@ -279,6 +298,13 @@ class Explorer:
         given up is tried again (:meth:`forgive`), and places deferred to this round are, whatever the end;
         returns how many were forgiven."""
         self.round += 1
+        if grid is not None:
+            # A place the map now holds whole (a room mapped since through another way, a doorway since seen
+            # open) has no frontier left to give up: it leaves the list, and the end report, for good.
+            mapped = self._mapped(grid)
+            self.deferred = {p: r for p, r in self.deferred.items()
+                             if p not in {self.blacklist[i] for i in mapped}}
+            self._drop(mapped)
         forgiven = self.remeasure(grid, pose) if grid is not None and pose is not None else 0
         forgiven += self.forgive(grid, pose) if incomplete else 0
         due = {i for i, p in enumerate(self.blacklist) if self.deferred.get(p, math.inf) <= self.round}

@@ -375,14 +375,42 @@ def test_a_sweep_resumed_keeps_the_runs_its_file_holds_and_runs_only_the_others(
     assert main(["bench", "explore", "--worlds", "lab", "--resume"]) == 2  # nothing to resume from
 
 
-def _wall_with_gap(gap: float) -> OccupancyGrid:
-    """An 8 m × 4 m room (origin at its corner) cut in two by a wall at x = 4 m with a ``gap`` [m] in it at y = 2 m."""
+def _wall_with_gap(gap: float, seen: bool = False) -> OccupancyGrid:
+    """An 8 m × 4 m room (origin at its corner) cut in two by a wall at x = 4 m with a ``gap`` [m] in it at y = 2 m;
+    the far half's middle (x 5–7.5 m, y 0.5–3.5 m) unseen, unless ``seen``."""
     g = np.full((80, 160), FREE, dtype=np.int8)
     g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = OCCUPIED
     g[:, 80] = OCCUPIED  # a wall across, with a gap
     half = int(round(gap / RES / 2))
     g[40 - half:40 + half, 80] = FREE
+    if not seen:
+        g[10:70, 100:150] = UNKNOWN
     return OccupancyGrid.from_map_data(MapData(g, RES, (0.0, 0.0, 0.0)))
+
+
+def test_a_place_given_up_leaves_the_list_once_the_map_holds_it_whole() -> None:
+    # Places given up before the robot looked and after (not_cleared), while the room behind them is unseen, stay
+    # given up at a new round; once the map holds the room (mapped through another way), they leave the list and
+    # the end report: there is no frontier there to give up. A place still next to unknown cells stays.
+    from homing.mapping.explorer import Explorer
+    from homing.mapping.strategies import make_strategy
+
+    pose = Pose2(1.0, 2.0, 0.0)
+    unseen = _wall_with_gap(0.30)
+    ex = Explorer(make_strategy("nearest"))
+    ex.blacklist = [(6.0, 2.0), (5.2, 3.0), (7.9, 0.2)]  # in the room; near its west edge; in a mapped corner
+    ex.blacklist_reasons = ["not_cleared", "no_path, 3 rounds; way in 0.30 m, narrower than the robot", "no_path"]
+    ex.new_round(unseen, pose)
+    # Unknown cells within the radius round the first two: kept; the corner's nearest is 0.54 m off: mapped round.
+    assert ex.blacklist == [(6.0, 2.0), (5.2, 3.0)]
+    assert ex.blacklist_reasons[0] == "not_cleared"
+    seen = _wall_with_gap(0.30, seen=True)
+    seen_part = _wall_with_gap(0.30)
+    seen_part.data[10:70, 100:125] = FREE  # the room's west half seen: (5.2, 3.0) mapped round, (6.0, 2.0) not
+    ex.new_round(seen_part, pose)
+    assert ex.blacklist == [(6.0, 2.0)]
+    ex.new_round(seen, pose)
+    assert ex.blacklist == [] and "(6.0, 2.0)" not in ex.end_message()
 
 
 @pytest.mark.parametrize(("gap", "fits"), [(0.30, False), (0.80, True)])
