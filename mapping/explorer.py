@@ -51,7 +51,11 @@ Places to stand are cells the costmap reaches that no place given up
 covers; a site the costmap reaches only at places given up (goals near it
 that were unreachable, no progress…) goes with them — no recovery brings
 those back — as ``stands given up (unreachable)``, tried again when they
-are (a later round), or as ``not_cleared`` when all were looked from. A
+are (a later round), or as ``not_cleared`` when all were looked from; and
+so does a peek site that no cell of the map the robot fits in comes within
+``PEEK`` of (free cells seen through a wall, reached on the map only through
+unknown space): ``no place to look from within 0.75 m``, tried again on a
+later round, when the map may have one. A
 site the costmap cuts off (inflation in a doorway, a transient obstacle, a
 localisation error) is a failure with a typed reason, ``frontier_cut_off``,
 for the mission's recoveries to act on; after
@@ -76,13 +80,15 @@ import cv2
 import numpy as np
 from homing.mapping.frontier import OCCUPIED_AT
 from homing.mapping.grid import OccupancyGrid
-from homing.mapping.navigable import ways_in
+from homing.mapping.navigable import disc, ways_in
 from homing.mapping.reachable import (
     PEEK,
     FrontierReport,
     FrontierSite,
     GivenUp,
+    clear_of_walls,
     frontier_report,
+    robot_region,
     site_blacklisted,
 )
 from homing.mapping.strategies import GoalChoice, GoalContext, GoalStrategy
@@ -101,6 +107,7 @@ LOOKED_AT = "not_cleared"  # the one reason a place is given up after the robot 
 RETRY_ROUNDS = 2  # rounds a place given up before the robot looked at it is tried again, before it is given up for good
 CUT_OFF_TRIES = 4  # failures in a row on frontiers the costmap cuts off before they are given up (one recovery round)
 STANDS_GIVEN_UP = "stands given up"  # a site whose every place to look from was given up (and why those were)
+NO_PLACE = "no place to look from"  # a peek site no cell of the map the robot fits in comes near
 NARROW = "narrower than the robot"  # the mark of a place given up for good by its width (measured again each round)
 REOPENED_KEPT = 20  # places whose way in was measured open again, kept with their reasons for the end report
 
@@ -440,6 +447,12 @@ class Explorer:
             for site in looked_over:
                 self._blacklist_site(site, grid, self._stands_reason(site, grid, radius[site.peek]))
             return self._no_goal(grid, pose, distance)
+        unseeable = self._no_place_to_look(grid, pose, open_sites, radius[True])
+        if unseeable:
+            # Nor does a recovery of the costmap make a place the map itself does not have.
+            for site in unseeable:
+                self._blacklist_site(site, grid, f"{NO_PLACE} within {PEEK:.2f} m")
+            return self._no_goal(grid, pose, distance)
         self.cut_offs += 1
         if self.cut_offs >= CUT_OFF_TRIES:
             self.cut_offs = 0
@@ -447,6 +460,21 @@ class Explorer:
                 self._blacklist_site(site, grid, "cut_off")
             return self._no_goal(grid, pose, distance)
         return ExploreStep(None, True, False, None, stuck="frontier_cut_off", report=report)
+
+    def _no_place_to_look(self, grid: OccupancyGrid, pose: Pose2, sites: list[FrontierSite],
+                          radius: float) -> list[FrontierSite]:
+        """The peek sites of ``sites`` that no cell of the map the robot fits in (walls alone, the costmap aside)
+        comes within ``radius`` (plus a cell) of: free cells seen through a wall or past a corner, reached on the map
+        only through unknown space. Cost: one distance transform and one labelling of the grid (rare: only when no
+        site has a place to stand)."""
+        peeks = [s for s in sites if s.peek]
+        if not peeks:
+            return []
+        g, res = grid.data, grid.resolution
+        cell = ((pose.y - grid.origin[1]) / res - 0.5, (pose.x - grid.origin[0]) / res - 0.5)
+        region = robot_region((g == FREE) & clear_of_walls(g, res, self.robot_radius), cell, res)
+        near = cv2.dilate(region.astype(np.uint8), disc(radius / res + 1.0)).astype(bool)
+        return [s for s in peeks if not near[s.cells[:, 0], s.cells[:, 1]].any()]
 
     def _given_up_mask(self, grid: OccupancyGrid) -> np.ndarray:
         """(H, W) bool: cells within ``blacklist_radius`` of a place given up."""

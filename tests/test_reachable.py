@@ -291,3 +291,32 @@ def test_a_frontier_next_to_the_robot_is_looked_at_from_there_then_given_up_as_n
     looked = ex.update(grid, _pose(robot), dist, 1.0)  # one look later, the map unchanged: the lidar cannot clear it
     assert looked.done and looked.stuck is None and looked.gave_up == 0
     assert "not_cleared" in ex.end_message()
+
+
+def test_a_half_seen_site_no_place_of_the_map_comes_near_is_given_up_not_an_error() -> None:
+    """office:1 seed 3 (bench persist): free cells the lidar saw through a wall, 1.5-2 m beyond it, count as a site
+    to peek at (the unknown around the building joins them to the robot's room), but no cell of the map the robot
+    fits in comes within PEEK of them: ``frontier_cut_off`` round after round, and the Error's clearing of the
+    costmap cannot make a place the map does not have. Given up with the reason, exploration incomplete."""
+    g = _two_rooms(door=0.9, beyond_seen=0.0)
+    half = int(round(0.9 / 2 / RES))
+    g[40 - half : 40 + half, 88:90] = UNKNOWN  # the doorway not seen: a frontier in room A, ...
+    g[38:43, 120:126] = FREE  # ... and a patch seen in room B 1.5 m past the wall
+    grid = _grid(g)
+    robot = (40, 30)
+    dist = travel_distance(g, RES, robot)
+    report = frontier_report(grid, (_pose(robot).x, _pose(robot).y))
+    far = [s for s in report.reachable if s.peek and s.x > 5.5]
+    assert len(far) == 1
+    ex = Explorer(make_strategy("frontier_travel"), np.random.default_rng(0))
+    steps = []
+    for t in range(60):  # the doorway's frontier is given up, goal by goal
+        step = ex.update(grid, _pose(robot), dist, float(t))
+        steps.append(step)
+        if step.goal is None:
+            break
+        ex.report_failure("no_progress")
+    assert steps[-1].goal is None
+    assert [s.stuck for s in steps if s.stuck] == []
+    assert steps[-1].done and steps[-1].gave_up >= 1
+    assert "no place to look from within 0.75 m" in ex.end_message()
