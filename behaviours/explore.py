@@ -39,8 +39,10 @@ the map, a place behind a way narrower than the robot is given up for good, and 
 to is deferred to a later round (:meth:`Explorer.new_round`); every start measures the ways in to places given
 up as too narrow again on the map as it is, and tries those the robot now fits (:meth:`Explorer.remeasure`: a
 door opened since). Frontiers it could reach but the costmap cuts off end the leaf
-with FAILURE ``frontier_cut_off`` (or ``frontier_not_cleared``) for the
-recoveries; after a round of them those frontiers are given up.
+with FAILURE ``frontier_cut_off`` for the recoveries; after a round of
+them those frontiers are given up (a frontier the costmap reaches only at
+places already given up is given up with them at once: no recovery brings
+those back).
 """
 
 from __future__ import annotations

@@ -44,11 +44,21 @@ history kept for the end report (``…; way in now ≥ 0.40 m, the robot fits``)
 
 A site the costmap still reaches but the strategy declined (too small for its rule) is
 visited anyway: the robot stands against it, or for a door seen only at a
-grazing angle (a peek site) within ``PEEK`` of it, to look through. A site
-the costmap cuts off (inflation in a doorway, a transient obstacle, a
-localisation error) is a failure with a typed reason,
-``frontier_cut_off`` (or ``frontier_not_cleared`` when the only sites left
-are next to the robot), for the mission's recoveries to act on; after
+grazing angle (a peek site) within ``PEEK`` of it, to look through — next
+to the robot too: it has then arrived, and a site whose frontier is still
+there once it looked from where it stands is given up as ``not_cleared``.
+Places to stand are cells the costmap reaches that no place given up
+covers; a site the costmap reaches only at places given up (goals near it
+that were unreachable, no progress…) goes with them — no recovery brings
+those back — as ``stands given up (unreachable)``, tried again when they
+are (a later round), or as ``not_cleared`` when all were looked from; and
+so does a peek site that no cell of the map the robot fits in comes within
+``PEEK`` of (free cells seen through a wall, reached on the map only through
+unknown space): ``no place to look from within 0.75 m``, tried again on a
+later round, when the map may have one. A
+site the costmap cuts off (inflation in a doorway, a transient obstacle, a
+localisation error) is a failure with a typed reason, ``frontier_cut_off``,
+for the mission's recoveries to act on; after
 ``CUT_OFF_TRIES`` such failures in a row those sites are given up as
 ``cut_off``. A strategy whose early end is its published behaviour
 (``ends_without_goal``: explore_lite) still ends when it finds no goal, and
@@ -70,13 +80,15 @@ import cv2
 import numpy as np
 from homing.mapping.frontier import OCCUPIED_AT
 from homing.mapping.grid import OccupancyGrid
-from homing.mapping.navigable import ways_in
+from homing.mapping.navigable import disc, ways_in
 from homing.mapping.reachable import (
     PEEK,
     FrontierReport,
     FrontierSite,
     GivenUp,
+    clear_of_walls,
     frontier_report,
+    robot_region,
     site_blacklisted,
 )
 from homing.mapping.strategies import GoalChoice, GoalContext, GoalStrategy
@@ -94,6 +106,8 @@ MAX_ARRIVALS = 2  # a place reached this often with its frontier still there is 
 LOOKED_AT = "not_cleared"  # the one reason a place is given up after the robot stood at it and looked
 RETRY_ROUNDS = 2  # rounds a place given up before the robot looked at it is tried again, before it is given up for good
 CUT_OFF_TRIES = 4  # failures in a row on frontiers the costmap cuts off before they are given up (one recovery round)
+STANDS_GIVEN_UP = "stands given up"  # a site whose every place to look from was given up (and why those were)
+NO_PLACE = "no place to look from"  # a peek site no cell of the map the robot fits in comes near
 NARROW = "narrower than the robot"  # the mark of a place given up for good by its width (measured again each round)
 REOPENED_KEPT = 20  # places whose way in was measured open again, kept with their reasons for the end report
 
@@ -402,21 +416,25 @@ class Explorer:
                            and not site_blacklisted(s, grid, looked, self.blacklist_radius) for s in report.reachable)
             self._measure_narrow(grid, pose, report)
             return ExploreStep(None, True, True, None, report=report, gave_up=int(unlooked))
-        ctx = self._context(grid, pose, distance)
-        # Stand where the footprint touches the site (a peek site: within PEEK of it, to look).
+        # Stand where the footprint touches the site (a peek site: within PEEK of it, to look), on a cell the costmap
+        # reaches and no given-up place covers; next to the robot too (it then counts as arrived at once, and the site,
+        # looked at from there, is given up as not_cleared if its frontier is still there).
+        given = self._given_up_mask(grid)
+        allowed = np.where(given, np.inf, distance)
         radius = {False: self.robot_radius, True: max(self.robot_radius, PEEK - grid.resolution)}
-        beside = {peek: _beside(distance, rad, grid.resolution) for peek, rad in radius.items()
-                  if any(site.peek == peek for site in open_sites)}
+        kinds = {site.peek for site in open_sites}
+        beside = {peek: _beside(allowed, radius[peek], grid.resolution) for peek in kinds}
+        near = {peek: _beside(distance, radius[peek], grid.resolution) for peek in kinds}
         best: tuple[float, FrontierSite, tuple[int, int]] | None = None
-        near_any = False
+        looked_over: list[FrontierSite] = []  # the costmap reaches them, but every place to look from was given up
         for site in open_sites:
             d = beside[site.peek][site.cells[:, 0], site.cells[:, 1]]
-            near_any |= bool(np.isfinite(d).any())
-            # The reachable cell nearest to the site's closest cell.
-            i = int(np.argmin(d))
+            i = int(np.argmin(d))  # the site's cell nearest to a place to stand
             if not np.isfinite(d[i]):
+                if np.isfinite(near[site.peek][site.cells[:, 0], site.cells[:, 1]]).any():
+                    looked_over.append(site)
                 continue
-            cell = _stand_cell(distance, ctx.excluded, tuple(site.cells[i]), radius[site.peek], grid.resolution)
+            cell = _stand_cell(allowed, given, tuple(site.cells[i]), radius[site.peek], grid.resolution)
             if cell is not None and (best is None or d[i] < best[0]):
                 best = (float(d[i]), site, cell)
         if best is not None:
@@ -424,14 +442,59 @@ class Explorer:
             self.choice = GoalChoice(best[2], None, [], -best[0])
             self._declined = best[1]  # visited once: given up on arrival if still there
             return None
+        if looked_over:
+            # No recovery brings back a place given up: the site goes with them, and says why (module doc).
+            for site in looked_over:
+                self._blacklist_site(site, grid, self._stands_reason(site, grid, radius[site.peek]))
+            return self._no_goal(grid, pose, distance)
+        unseeable = self._no_place_to_look(grid, pose, open_sites, radius[True])
+        if unseeable:
+            # Nor does a recovery of the costmap make a place the map itself does not have.
+            for site in unseeable:
+                self._blacklist_site(site, grid, f"{NO_PLACE} within {PEEK:.2f} m")
+            return self._no_goal(grid, pose, distance)
         self.cut_offs += 1
         if self.cut_offs >= CUT_OFF_TRIES:
             self.cut_offs = 0
             for site in open_sites:
                 self._blacklist_site(site, grid, "cut_off")
             return self._no_goal(grid, pose, distance)
-        reason = "frontier_not_cleared" if near_any else "frontier_cut_off"
-        return ExploreStep(None, True, False, None, stuck=reason, report=report)
+        return ExploreStep(None, True, False, None, stuck="frontier_cut_off", report=report)
+
+    def _no_place_to_look(self, grid: OccupancyGrid, pose: Pose2, sites: list[FrontierSite],
+                          radius: float) -> list[FrontierSite]:
+        """The peek sites of ``sites`` that no cell of the map the robot fits in (walls alone, the costmap aside)
+        comes within ``radius`` (plus a cell) of: free cells seen through a wall or past a corner, reached on the map
+        only through unknown space. Cost: one distance transform and one labelling of the grid (rare: only when no
+        site has a place to stand)."""
+        peeks = [s for s in sites if s.peek]
+        if not peeks:
+            return []
+        g, res = grid.data, grid.resolution
+        cell = ((pose.y - grid.origin[1]) / res - 0.5, (pose.x - grid.origin[0]) / res - 0.5)
+        region = robot_region((g == FREE) & clear_of_walls(g, res, self.robot_radius), cell, res)
+        near = cv2.dilate(region.astype(np.uint8), disc(radius / res + 1.0)).astype(bool)
+        return [s for s in peeks if not near[s.cells[:, 0], s.cells[:, 1]].any()]
+
+    def _given_up_mask(self, grid: OccupancyGrid) -> np.ndarray:
+        """(H, W) bool: cells within ``blacklist_radius`` of a place given up."""
+        mask = np.zeros(grid.shape, bool)
+        for bx, by in self.blacklist:
+            _disc(mask, (by - grid.origin[1]) / grid.resolution - 0.5, (bx - grid.origin[0]) / grid.resolution - 0.5,
+                  self.blacklist_radius / grid.resolution)
+        return mask
+
+    def _stands_reason(self, site: FrontierSite, grid: OccupancyGrid, radius: float) -> str:
+        """Why a site is given up whose every place to look from was: ``not_cleared`` when those places were all
+        looked from (settled), else ``stands given up (<their reasons>)``, tried again as they are."""
+        x, y = grid.cell_to_world(site.cells[:, 0].astype(float), site.cells[:, 1].astype(float))
+        reach = radius + 2 * grid.resolution + self.blacklist_radius
+        whys = {why for (bx, by), why in zip(self.blacklist, self.blacklist_reasons, strict=True)
+                if float(np.min(np.hypot(np.atleast_1d(x) - bx, np.atleast_1d(y) - by))) <= reach}
+        if whys and all(settled(why) for why in whys):
+            return LOOKED_AT
+        names = sorted({why.split(",")[0].split(" (")[0] for why in whys if not settled(why)})
+        return f"{STANDS_GIVEN_UP} ({', '.join(names)})"
 
     # ---------------------------------------------------------------- rules
     def _give_up(self, grid: OccupancyGrid, pose: Pose2, field: Callable[[], np.ndarray], now: float,
@@ -477,15 +540,11 @@ class Explorer:
         return False
 
     def _context(self, grid: OccupancyGrid, pose: Pose2, distance: np.ndarray) -> GoalContext:
-        h, w = grid.shape
         res = grid.resolution
         rr = (pose.y - grid.origin[1]) / res - 0.5
         rc = (pose.x - grid.origin[0]) / res - 0.5
-        excluded = np.zeros((h, w), bool)
+        excluded = self._given_up_mask(grid)
         _disc(excluded, rr, rc, self.reach_radius / res)
-        for bx, by in self.blacklist:
-            _disc(excluded, (by - grid.origin[1]) / res - 0.5, (bx - grid.origin[0]) / res - 0.5,
-                  self.blacklist_radius / res)
         current = None
         if self.goal is not None:
             gr, gc = grid.world_to_cell(self.goal.x, self.goal.y)
