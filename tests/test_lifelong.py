@@ -197,7 +197,8 @@ def test_laps_between_the_old_keyframes_add_none_and_the_map_stays_the_world() -
     assert counts[-1] <= 1.12 * counts[0] and counts[-1] - counts[2] <= 2, counts
     assert online.stats.hops >= 200  # the other lanes hop from one old keyframe to the next, placed by fits
     assert max(online.stats.rebuild_keyframes, default=0) <= counts[-1]  # a redraw costs what the first lap made
-    assert max(t.distance_to(p) for t, p in zip(lap.truth, poses, strict=True)) < 0.15  # [m] it knows where it is
+    # [m] it knows where it is (0.12 m with views placed by the chain: a redraw drew them where tracking put them)
+    assert max(t.distance_to(p) for t, p in zip(lap.truth, poses, strict=True)) < 0.1
     assert np.mean(wall_distance(online.grid) < 0.1) > 0.98  # occupied cells on the walls (old: 0.94)
     assert free_outside(online.grid) < 0.005  # free cells on the floor
 
