@@ -11,10 +11,8 @@ time the front end has travelled ``keyframe_distance``::
                 │
                 ▼
       a keyframe within cover_radius of here (facing alike), or one closure_gap of path older within tie_radius?
-       ├─ within cover_radius, already tied to the anchor ──► it becomes the anchor
+       ├─ within cover_radius, already tied to the anchor ──► it becomes the anchor  (the scan: its newest view)
        ├─ the scan fits the submap around it ──► tie anchor→it (robust; none if tied already); it becomes the anchor
-       │                                         (the scan, placed by the fit: its newest view)
-       ├─ it does not, but the keyframe is within cover_radius ──► nothing: the anchor stays, its chain grows
        └─ no ──► new keyframe, tied to the anchor by the front end's motion
                    └─ loop closure: the new keyframe fitted to the submap around the nearest
                       keyframe ``closure_gap`` of path older, searched over the graph's own
@@ -31,9 +29,8 @@ mapped, not with the time spent there. A patrol passing between old
 keyframes ties to one up to ``tie_radius`` away, so that once the map
 stops growing the keyframes stop too, and with them the redraw's cost. A
 route driven again and again hops from one tied keyframe to the next and
-costs the graph nothing; each keyframe a revisit's scan is fitted to keeps
-that newest scan of its place, which redraws use (a parcel taken away stays
-away in the redrawn map).
+costs the graph nothing; each keyframe it passes keeps the newest scan of its
+place, which redraws use (a parcel taken away stays away in the redrawn map).
 
 The front end keeps what made it trustworthy: the settled reference grid,
 the slip rungs, lost-and-found relocalisation. :meth:`set_pose` (the dock
@@ -150,7 +147,7 @@ class LifelongConfig:
 class Node:
     """A keyframe: its scan, its end points (M, 2) [m, base_link] within reach, the path [m] when it was made.
 
-    ``view`` is the newest scan a fit placed here and where it was taken from the keyframe (``view_at``): what the
+    ``view`` is the newest scan of its place and where it was taken from the keyframe (``view_at``): what the
     grid is redrawn from, so that a redrawn map shows the place as it was last seen (a parcel taken away stays
     away), while fits keep the keyframe's own points.
     """
@@ -188,9 +185,8 @@ class LifelongStats(Stats):
     """Counters of :class:`LifelongSlam` (those of :class:`~homing.mapping.graph_slam.Stats` and its own)."""
 
     ties: int = 0  # factors to a keyframe that covered the place (a revisit)
-    hops: int = 0  # revisits to a keyframe already tied to the anchor (beyond cover_radius: placed by a fit, whose
-    # scan becomes its newest view): no factor
-    unfitted: int = 0  # revisits within cover_radius whose scan did not fit: no keyframe, the anchor kept
+    hops: int = 0  # revisits to a keyframe already tied to the anchor (beyond cover_radius: placed by a fit): no
+    # factor, only its newest view kept
     rebuilds: int = 0  # grids redrawn from the keyframes
     jumps: int = 0  # set_pose calls that moved the robot (dock anchor, relocalisation)
     steps: int = 0  # keyframe steps (front end moved keyframe_distance)
@@ -379,19 +375,12 @@ class LifelongSlam(GridSlam):
         tied = (min(a, j), max(a, j)) in self._ties
         if tied and d[j] <= self.cfg.cover_radius:  # a route driven before: hop along it
             self.stats.hops += 1
-            self._hop(j, front, here.between(self._est[j]).inverse(), scan, view=False)
+            self._hop(j, front, here.between(self._est[j]).inverse(), scan)
             return True
-        if self._tie(j, scan, front, chain, tied):
-            return True
-        if d[j] <= self.cfg.cover_radius:
-            # Covered, though the scan did not fit there (a changed place; or a drift wider than the search): no
-            # keyframe. The anchor stays, its chain grows, and the next step tries again with a wider search. (A
-            # new keyframe each time: in the lab's day 26 of the 50 added after its first 5.5 h, within 0.3 m of
-            # an old one; on test_lifelong's lanes +5 a lap.)
-            self.stats.unfitted += 1
-            self._place(scan.stamp, self._anchor, chain)
-            return True
-        return False
+        # A scan that does not fit makes a keyframe even where one covers the place (a changed place, or a drift
+        # wider than the search): its closure search is what finds a drift. (Keeping the anchor instead, its
+        # chain growing, lost ACES's closures: 0.068 → 0.142 m.)
+        return self._tie(j, scan, front, chain, tied)
 
     def _tie(self, j: int, scan: Scan, front: Pose2, chain: Pose2, tied: bool) -> bool:
         """Whether the scan, ``chain`` from the anchor, fits the submap around keyframe j; if so j becomes the anchor,
@@ -424,18 +413,12 @@ class LifelongSlam(GridSlam):
         self._hop(j, front, seen, scan)
         return True
 
-    def _hop(self, j: int, front: Pose2, seen: Pose2, scan: Scan, view: bool = True) -> None:
-        """Keyframe j becomes the anchor; the robot (front end at ``front``) stands at ``seen`` from it, and with
-        ``view`` (``seen`` is a fit's) ``scan`` is j's newest view.
-
-        A hop by the estimates alone leaves the view as it was: its ``seen`` is the chain's, as far off as the robot's
-        tracking (up to 15 cm on test_lifelong's lanes), and redraws draw every view at its keyframe's pose with it
-        (walls within 0.1 m: 0.94 of the cells with such views, 0.99 without).
-        """
+    def _hop(self, j: int, front: Pose2, seen: Pose2, scan: Scan) -> None:
+        """Keyframe j becomes the anchor; the robot (front end at ``front``) stands at ``seen`` from it, and ``scan``
+        is j's newest view."""
         self._anchor, self._anchor_front = j, front.compose(seen.inverse())
         self._place(scan.stamp, j, seen)
-        if view:
-            self.nodes[j].view, self.nodes[j].view_at = scan, seen
+        self.nodes[j].view, self.nodes[j].view_at = scan, seen
 
     def _close_loop(self, k: int) -> None:
         """Fit the new keyframe to the submap around the nearest one ``closure_gap`` older (graph_slam's search)."""
