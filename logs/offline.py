@@ -56,6 +56,9 @@ LOG_GRID_MAX_CORRECTION = (0.5, math.radians(12.0))  # [m, rad]
 # nearly every scan is a keyframe step and a hop's pose comes from the graph's estimates alone; with the robot's
 # 0.45 m ACES came out at 0.209 ± 0.767 m (hops to keyframes farther off, then wrong ties), with 0.35 m 0.068 m.
 LOG_COVER_RADIUS = 0.35
+# [m] and a revisit ties to none farther off: the robot's tie_radius (1 m) is for patrol lanes passing between
+# keyframes made 0.7 m apart; a corrected log's keyframes are about as far apart as its scans.
+LOG_TIE_RADIUS = LOG_COVER_RADIUS
 
 
 @dataclass
@@ -152,7 +155,8 @@ def _grid(data: list[tuple[float, Odometry, Scan | None]], max_range: float,
 
 
 def _online(data: list[tuple[float, Odometry, Scan | None]], max_range: float, resolution: float) -> LifelongSlam:
-    slam = LifelongSlam(LifelongConfig(max_range=max_range, cover_radius=LOG_COVER_RADIUS), record=True, resolution=resolution,
+    slam = LifelongSlam(LifelongConfig(max_range=max_range, cover_radius=LOG_COVER_RADIUS,
+                                       tie_radius=LOG_TIE_RADIUS), record=True, resolution=resolution,
                         matcher=_log_matcher(), max_correction=LOG_GRID_MAX_CORRECTION, match_range=max_range - 1.0,
                         relocalise_when_lost=False)
     for _stamp, odom, scan in data:
