@@ -11,6 +11,7 @@ import pytest
 from homing.behaviours.explore import Explore
 from homing.mapping.navigable import navigable
 from homing.missions.runner import Runner
+from homing.robot.turtlebot import BASE_RADIUS
 from homing.sim import SimRobot, load_world
 from homing.sim.events import Change, rasterise
 from homing.sim.walls import solid_mask
@@ -85,7 +86,9 @@ def test_a_room_given_up_behind_a_doorway_too_narrow_in_the_first_session_is_map
         narrow = [width for x, y, width in first["narrow"] if x0 < x < x1 and y0 < y < y1]
         given_up = [why for x, y, why in first["given_up"] if x0 < x < x1 and y0 < y < y1]
         assert narrow or given_up, first["report"]
-        assert all(w == pytest.approx(0.28, abs=0.1) for w in narrow), first["narrow"]
+        # Each measured narrower than the robot, through the free space its map knows there (the doorway's 0.28 m,
+        # or less where the lidar saw only part of the gap: a unit test pins the width on a map that holds it all).
+        assert all(0.0 < w < 2 * BASE_RADIUS for w in narrow), first["narrow"]
         assert all(why in first["report"] for why in given_up)
         assert not narrow or "narrower_than_robot (way in " in first["report"], first["report"]
         # Later rounds: the patrol sees the doorway open, the next round's exploration goes in and maps the room.
