@@ -290,9 +290,8 @@ class Explorer:
         """The blacklist's points with no unknown cell of ``grid`` within ``blacklist_radius``."""
         data, res = grid.data, grid.resolution
         h, w = data.shape
-        n = int(math.ceil(self.blacklist_radius / res))
-        yy, xx = np.mgrid[-n : n + 1, -n : n + 1]
-        disc = xx * xx + yy * yy <= (self.blacklist_radius / res) ** 2
+        near_disc = disc(self.blacklist_radius / res).astype(bool)
+        n = near_disc.shape[0] // 2
         out = set()
         for i, (x, y) in enumerate(self.blacklist):
             r, c = (int(v) for v in grid.world_to_cell(x, y))
@@ -300,7 +299,7 @@ class Explorer:
                 continue
             r0, c0 = max(r - n, 0), max(c - n, 0)
             patch = data[r0 : r + n + 1, c0 : c + n + 1]
-            near = disc[r0 - (r - n) : r0 - (r - n) + patch.shape[0], c0 - (c - n) : c0 - (c - n) + patch.shape[1]]
+            near = near_disc[r0 - (r - n) : r0 - (r - n) + patch.shape[0], c0 - (c - n) : c0 - (c - n) + patch.shape[1]]
             if not (patch[near] == UNKNOWN).any():
                 out.add(i)
         return out
@@ -586,12 +585,8 @@ def _cell_of(grid: OccupancyGrid, pose: Pose2) -> tuple[int, int]:
 def _beside(distance: np.ndarray, robot_radius: float, resolution: float) -> np.ndarray:
     """(H, W) [m]: the least travel distance within the footprint's radius (plus a cell) of each cell, inf where
     none is finite: how far the robot must drive to stand against that cell."""
-    r = (robot_radius + resolution) / resolution
-    k = int(math.ceil(r))
-    yy, xx = np.mgrid[-k : k + 1, -k : k + 1]
-    disc = (xx * xx + yy * yy <= r * r).astype(np.uint8)
     field = np.where(np.isfinite(distance), distance, 1e9).astype(np.float32)
-    out = cv2.erode(field, disc, borderType=cv2.BORDER_CONSTANT, borderValue=1e9).astype(np.float64)
+    out = cv2.erode(field, disc((robot_radius + resolution) / resolution), borderType=cv2.BORDER_CONSTANT, borderValue=1e9).astype(np.float64)
     out[out >= 1e8] = np.inf
     return out
 

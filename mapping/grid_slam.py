@@ -174,18 +174,18 @@ class GridSlam:
 
     # ----------------------------------------------------------------- inputs
     def update(self, odom: Odometry, scan: Scan | None) -> bool:
-        """Feed one observation's odometry and latest scan; returns True if a new scan was fused."""
+        """Feed one observation's odometry and latest scan; returns True if a new scan was fused into the map (not:
+        a dropout, a misfit, a scan spent looking for a lost robot)."""
         self._odom.add(odom.stamp, odom.pose)
-        fused = False
+        before = self.scans_fused
         if scan is not None and scan.stamp > self._last_scan_stamp:
             self._last_scan_stamp = scan.stamp
             at = self._odom.at(scan.stamp)
             if self._due(scan.stamp, at):
                 self._fuse(scan, at)
                 self._last_fused = (scan.stamp, at)
-                fused = True
         self.pose = self.map_to_odom.compose(odom.pose)
-        return fused
+        return self.scans_fused > before
 
     def _due(self, stamp: float, odom_pose: Pose2) -> bool:
         """Whether a scan taken at ``odom_pose`` is worth matching and fusing (see UPDATE_*)."""

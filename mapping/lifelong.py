@@ -249,9 +249,8 @@ class LifelongSlam(GridSlam):
     # ----------------------------------------------------------------- inputs
     def update(self, odom: Odometry, scan: Scan | None) -> bool:
         """As :meth:`GridSlam.update`; a fused scan also moves the graph on (module doc)."""
-        before = self.scans_fused
         fused = super().update(odom, scan)
-        if scan is not None and self.scans_fused > before:
+        if fused and scan is not None:
             self._step(scan)
         return fused
 

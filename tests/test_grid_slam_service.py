@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from dataclasses import replace
 
+import numpy as np
 import py_trees
 import pytest
 from homing.behaviours.grid_slam_service import DOCK_ANCHOR, DOCK_SCANS, GridSlamService
 from homing.behaviours.keys import DOCK_KEY
 from homing.lifecycle.rundir import Snapshot
+from homing.mapping.grid_slam import GridSlam
 from homing.mapping.lifelong import LifelongSlam
 from homing.robot import Pose2
 from homing.sim import SimRobot, load_world
@@ -146,3 +149,27 @@ def test_a_restored_map_restarts_the_graph_on_it() -> None:
 def test_loop_closure_needs_the_matcher() -> None:
     with pytest.raises(ValueError, match="loop_closure needs use_matcher"):
         GridSlamService(use_matcher=False, loop_closure=True)
+
+
+@pytest.mark.parametrize("cls", [GridSlam, LifelongSlam], ids=["grid", "loop_closure"])
+def test_a_dropout_is_not_counted_as_a_fused_scan(cls) -> None:
+    # A sweep with no returns is no evidence of anything: the map stays as it was, nothing is counted as fused (the
+    # service counts its dock scans and the pose graph its steps by that answer), and the next sweep is.
+    robot = SimRobot(load_world("lab"), seed=1)
+    try:
+        slam = cls()
+        robot.step(0.2)
+        obs = robot.observe()
+        assert slam.update(obs.odom, obs.scan) and slam.scans_fused == 1
+        before = slam.grid.data.copy()
+        robot.step(0.2)
+        obs = robot.observe()
+        dark = replace(obs.scan, ranges=np.full_like(obs.scan.ranges, np.inf))
+        assert not dark.valid().any()
+        assert not slam.update(obs.odom, dark)
+        assert slam.scans_fused == 1 and np.array_equal(slam.grid.data, before)
+        robot.step(0.2)
+        obs = robot.observe()
+        assert slam.update(obs.odom, obs.scan) and slam.scans_fused == 2
+    finally:
+        robot.close()
