@@ -32,13 +32,19 @@ def best_fit(est: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def tag_errors(est: dict[int, Pose2], truth: dict[int, Pose2], dock_id: int) -> dict[str, float]:
-    """Total and mean per-tag error [m] after dock-tag alignment and after the best rigid fit."""
+    """Total and mean per-tag error [m] after dock-tag alignment and after the best rigid fit.
+
+    Also each true tag's own dock-aligned error as ``tag<id>_m`` (NaN where the
+    map lacks it or has no dock tag): which tags a mean hides, and where they are.
+    """
     ids = sorted(i for i in est if i in truth)
     out = {"n_tags": float(len(ids))}
+    out.update({f"tag{i}_m": math.nan for i in sorted(truth)})
     if dock_id in est and dock_id in truth:
         move = truth[dock_id].compose(est[dock_id].inverse())  # puts the estimated dock tag on the true one
         e = [move.compose(est[i]).distance_to(truth[i]) for i in ids]
         out.update(dock_total_m=float(np.sum(e)), dock_mean_m=float(np.mean(e)))
+        out.update({f"tag{i}_m": err for i, err in zip(ids, e, strict=True)})
     else:
         out.update(dock_total_m=math.nan, dock_mean_m=math.nan)
     if len(ids) >= 2:
@@ -54,12 +60,26 @@ def tag_errors(est: dict[int, Pose2], truth: dict[int, Pose2], dock_id: int) -> 
 
 def ate(est: list[Pose2], truth: list[Pose2]) -> float:
     """RMS position error [m] of a trajectory after the best rigid fit (Sturm et al. 2012's ATE)."""
+    return math.hypot(*ate_along_across(est, truth))
+
+
+def ate_along_across(est: list[Pose2], truth: list[Pose2]) -> tuple[float, float]:
+    """RMS position error [m] after the best rigid fit split along and across each true pose's heading.
+
+    A robot drives where it faces, so along is what only the wheels measure
+    where the lidar sees no wall ahead (a corridor longer than its range),
+    across what the side walls pin; (NaN, NaN) for fewer than two poses.
+    """
     if len(est) < 2:
-        return math.nan
+        return math.nan, math.nan
     A = np.array([[p.x, p.y] for p in est])
     B = np.array([[p.x, p.y] for p in truth])
     R, t = best_fit(A, B)
-    return float(np.sqrt(np.mean(np.sum((A @ R.T + t - B) ** 2, axis=1))))
+    d = A @ R.T + t - B
+    heading = np.array([p.theta for p in truth])
+    along = d[:, 0] * np.cos(heading) + d[:, 1] * np.sin(heading)
+    across = -d[:, 0] * np.sin(heading) + d[:, 1] * np.cos(heading)
+    return float(np.sqrt(np.mean(along**2))), float(np.sqrt(np.mean(across**2)))
 
 
 def mean_pose(poses: list[Pose2], weights: list[float] | None = None) -> Pose2:
@@ -149,12 +169,16 @@ class Collector:
         w = self.heading_weights
         gr = tag_errors({k: mean_pose(v, w[k]) for k, v in self.placed_grid.items()}, true_tags, self.dock_id)
         od = tag_errors({k: mean_pose(v, w[k]) for k, v in self.placed_odom.items()}, true_tags, self.dock_id)
+        keyframes = self.slam.keyframe_poses()
+        along, across = ate_along_across(keyframes, self.keyframe_truth)
         return {
             "gtsam_total_m": g["dock_total_m"], "grid_total_m": gr["dock_total_m"], "odom_total_m": od["dock_total_m"],
             "gtsam_mean_m": g["dock_mean_m"], "grid_mean_m": gr["dock_mean_m"], "odom_mean_m": od["dock_mean_m"],
             "gtsam_fit_total_m": g["fit_total_m"], "grid_fit_total_m": gr["fit_total_m"],
             "odom_fit_total_m": od["fit_total_m"], "gtsam_fit_mean_m": g["fit_mean_m"],
-            "ate_m": ate(self.slam.keyframe_poses(), self.keyframe_truth),
+            "ate_m": ate(keyframes, self.keyframe_truth),
+            "ate_along_m": along, "ate_across_m": across,
             "isam_update_ms_median": float(np.median(self.slam.update_ms)) if self.slam.update_ms else math.nan,
             "tags_seen": g["n_tags"], "tags_total": float(len(true_tags)), "keyframes": float(len(self.slam.keyframes)),
+            **{f"{who}_{k}": v for who, errs in (("gtsam", g), ("grid", gr)) for k, v in errs.items() if k.startswith("tag")},
         }
