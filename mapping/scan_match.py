@@ -36,6 +36,7 @@ from typing import Any, Protocol
 
 import cv2
 import numpy as np
+from homing.mapping.blocks import block_any
 from homing.mapping.grid import OccupancyGrid
 from homing.robot import Pose2
 from scipy import ndimage
@@ -243,7 +244,7 @@ class GridField:
             return
         self._occ[r0:r1, c0:c1] = occ
         tiles = np.zeros((t1 - t0 + 2, u1 - u0 + 2), bool)
-        tiles[1:-1, 1:-1] = changed.reshape(t1 - t0, t, u1 - u0, t).any(axis=(1, 3))
+        tiles[1:-1, 1:-1] = block_any(changed, t)
         dirty = ndimage.binary_dilation(tiles, np.ones((3, 3), bool))
         labels, _ = ndimage.label(dirty, np.ones((3, 3), int))
         for box in ndimage.find_objects(labels):

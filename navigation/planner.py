@@ -35,6 +35,7 @@ import cv2
 import numpy as np
 import pyastar2d
 import skfmm
+from homing.mapping.blocks import block_any
 from homing.navigation.costmap import INSCRIBED, LETHAL, MAX_NON_OBSTACLE, NO_INFORMATION, Costmap
 from homing.robot import Pose2
 from scipy.sparse import coo_matrix
@@ -531,10 +532,8 @@ def distance_map(costmap: Costmap, start: Pose2 | tuple[float, float],
     _, labels = cv2.connectedComponents(np.isfinite(w).astype(np.uint8), connectivity=4)
     reach = labels == labels[s]
     h, wd = reach.shape
-    hc, wc = -(-h // f), -(-wd // f)
-    blocks = np.zeros((hc * f, wc * f), bool)
-    blocks[:h, :wd] = reach
-    open_blocks = np.asarray(blocks.reshape(hc, f, wc, f).any(axis=(1, 3)))
+    open_blocks = block_any(reach, f)
+    hc, wc = open_blocks.shape
     # The start's block, and the start as a point in block coordinates (block centres at integers).
     t = _march(np.where(open_blocks, 1.0, np.inf), (s[0] // f, s[1] // f), speed=False,
                exact=((exact[0] + 0.5) / f - 0.5, (exact[1] + 0.5) / f - 0.5)) * (f * costmap.resolution)
