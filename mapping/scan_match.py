@@ -371,8 +371,9 @@ class CorrelativeMatcher:
         sub = pts[:: max(1, len(pts) // MAX_POINTS)]
         best = self._correlative(field, sub, prior)
         if self.refine:
-            best = self._gauss_newton(field, pts, best)
-        score = float(_score(field, pts, best))
+            best, score = self._gauss_newton_scored(field, pts, best)
+        else:
+            score = float(_score(field, pts, best))
         known, known_score = _known_fit(field, pts, best)
         return MatchResult(best, score, score >= self.min_score, known, known_score, int(round(known * len(pts))))
 
@@ -439,6 +440,11 @@ class CorrelativeMatcher:
     def _gauss_newton(self, field: LikelihoodField, pts: np.ndarray, start: Pose2,
                       anchor: np.ndarray = GN_ANCHOR_INFO) -> Pose2:
         """Refine ``start`` on ``field``, pulled towards it with information ``anchor`` (3, 3) per end point."""
+        return self._gauss_newton_scored(field, pts, start, anchor)[0]
+
+    def _gauss_newton_scored(self, field: LikelihoodField, pts: np.ndarray, start: Pose2,
+                             anchor: np.ndarray = GN_ANCHOR_INFO) -> tuple[Pose2, float]:
+        """:meth:`_gauss_newton`'s pose and its :func:`_score` (worked out there to choose it)."""
         xi = start.as_array().astype(float)
         # Anchor at the correlative optimum (itself tied to odometry where the scan is ambiguous): the
         # refinement is for sub-cell accuracy and must not slide along a corridor.
@@ -464,7 +470,8 @@ class CorrelativeMatcher:
                 break
         out = Pose2.from_array(xi)
         # Keep the refinement only if it does not make the fit worse.
-        return out if _score(field, pts, out) >= _score(field, pts, start) else start
+        refined, kept = float(_score(field, pts, out)), float(_score(field, pts, start))
+        return (out, refined) if refined >= kept else (start, kept)
 
 
 def _residuals(field: LikelihoodField, pts: np.ndarray, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

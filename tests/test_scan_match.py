@@ -302,3 +302,23 @@ def test_the_fields_interpolation_and_known_cells_are_the_first_formulas_to_the_
     J, r = _residuals(field, pts, xi)
     assert np.array_equal(r, (1.0 - m) * k)
     assert np.array_equal(J[:, 0], gx * k) and np.array_equal(J[:, 1], gy * k)
+
+
+def test_a_matchs_score_is_the_fields_mean_under_the_scan_at_the_refined_pose() -> None:
+    from homing.mapping.scan_match import _score
+
+    world = truth("loop")
+    pose = Pose2(-8.4, -8.4, 0.3)
+    rng = np.random.default_rng(3)
+    grid = OccupancyGrid(0.05)
+    for _ in range(3):
+        grid.integrate(cast_scan(world, pose, 0.0, rng), pose)
+    points = cast_scan(world, pose, 0.0, rng).points()
+    matcher = CorrelativeMatcher(refine=True)
+    for dx, dy, dth in [(0.12, -0.08, 0.05), (-0.1, 0.15, -0.1), (0.0, 0.0, 0.0)]:
+        prior = Pose2(pose.x + dx, pose.y + dy, pose.theta + dth)
+        result = matcher.match(grid, points, prior)
+        prepared = matcher._prepare(grid, points, prior, 5.0)
+        assert prepared is not None
+        # The score the refinement chose its pose by is the one a fresh look at that pose gives.
+        assert result.score == _score(prepared[1], prepared[0], result.pose)
