@@ -14,14 +14,19 @@ from homing.robot import Pose2
 from tests.mapping_helpers import cast_scan, drifting_odometry, odometry_msg, path_poses, truth
 
 
-def test_matcher_recovers_a_known_offset():
+def _loop_corner() -> tuple[OccupancyGrid, np.ndarray, Pose2]:
+    """A grid of three scans from a corner of the loop world, a fourth scan's points there, and the pose."""
     world = truth("loop")
     pose = Pose2(-8.4, -8.4, 0.3)
     rng = np.random.default_rng(3)
     grid = OccupancyGrid(0.05)
     for _ in range(3):
         grid.integrate(cast_scan(world, pose, 0.0, rng), pose)
-    pts = cast_scan(world, pose, 0.0, rng).points()
+    return grid, cast_scan(world, pose, 0.0, rng).points(), pose
+
+
+def test_matcher_recovers_a_known_offset():
+    grid, pts, pose = _loop_corner()
     for dx, dy, dth in [(0.12, -0.08, 0.05), (-0.1, 0.15, -0.1)]:
         result = CorrelativeMatcher().match(grid, pts, Pose2(pose.x + dx, pose.y + dy, pose.theta + dth))
         assert result.ok
@@ -307,13 +312,7 @@ def test_the_fields_interpolation_and_known_cells_are_the_first_formulas_to_the_
 def test_a_matchs_score_is_the_fields_mean_under_the_scan_at_the_refined_pose() -> None:
     from homing.mapping.scan_match import _score
 
-    world = truth("loop")
-    pose = Pose2(-8.4, -8.4, 0.3)
-    rng = np.random.default_rng(3)
-    grid = OccupancyGrid(0.05)
-    for _ in range(3):
-        grid.integrate(cast_scan(world, pose, 0.0, rng), pose)
-    points = cast_scan(world, pose, 0.0, rng).points()
+    grid, points, pose = _loop_corner()
     matcher = CorrelativeMatcher(refine=True)
     for dx, dy, dth in [(0.12, -0.08, 0.05), (-0.1, 0.15, -0.1), (0.0, 0.0, 0.0)]:
         prior = Pose2(pose.x + dx, pose.y + dy, pose.theta + dth)
