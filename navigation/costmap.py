@@ -36,7 +36,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-from homing.mapping.distance import distance_cells
+from homing.mapping.distance import squared_distance_cells
 from homing.mapping.navigable import inscribed_radius
 from homing.navigation.layers import (
     BumpMarks,
@@ -463,11 +463,13 @@ class Costmap:
         lethal = (static == LETHAL) | self.obstacles[window] | self._unseen_layer(window)
         if lethal.any():
             # The exact Euclidean distance to the nearest lethal cell, so the squared distance in cells is an
-            # integer: the cost is a table lookup, not an exponential per cell.
-            cells = distance_cells(~lethal)
+            # integer: the cost is a table lookup, not an exponential per cell. (The squared distance itself
+            # indexes the table: the distance squared and rounded again gives it back, exactly, up to 2^22 cells²,
+            # far past the table's end.)
+            squared = squared_distance_cells((~lethal).view(np.uint8))
             lut = self._cost_table()
-            cost = lut[np.minimum(np.rint(cells * cells), len(lut) - 1).astype(np.intp)]
-            d = cells * np.float32(self.resolution)
+            cost = lut[np.minimum(squared, len(lut) - 1).astype(np.intp)]
+            d = np.sqrt(squared) * np.float32(self.resolution)
         else:
             d = np.full(lethal.shape, np.inf, dtype=np.float32)
             cost = np.zeros(lethal.shape, dtype=np.uint8)
