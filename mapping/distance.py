@@ -22,8 +22,14 @@ import numpy as np
 
 def distance_cells(nonzero: np.ndarray) -> np.ndarray:
     """(H, W) float32: the exact distance [cells] from each cell to the nearest zero of ``nonzero``."""
+    return np.sqrt(squared_distance_cells(nonzero))
+
+
+def squared_distance_cells(nonzero: np.ndarray) -> np.ndarray:
+    """(H, W) float32: the squared distance [cells²], a whole number, whose square root :func:`distance_cells` is
+    (for a caller that wants both, as a cost looked up by squared distance: one transform, one rounding)."""
     src = np.asarray(nonzero).astype(np.uint8, copy=False)
     if src.all():
         return np.full(src.shape, np.inf, np.float32)
     d = cv2.distanceTransform(src, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    return np.sqrt(np.rint(d * d))
+    return np.rint(d * d)

@@ -48,6 +48,7 @@ import math
 
 import cv2
 import numpy as np
+from homing.mapping.blocks import block_any
 from homing.mapping.distance import distance_cells
 from homing.mapping.frontier import OCCUPIED_AT
 from scipy.sparse import coo_matrix
@@ -109,11 +110,7 @@ def path_distances(passable: np.ndarray, resolution: float, points: np.ndarray,
 
 def _coarsen(mask: np.ndarray, f: int) -> np.ndarray:
     """(ceil(H/f), ceil(W/f)) bool: whether any cell of each f × f block of ``mask`` (H, W) is set."""
-    h, w = mask.shape
-    hc, wc = -(-h // f), -(-w // f)
-    pad = np.zeros((hc * f, wc * f), bool)
-    pad[:h, :w] = mask
-    return np.asarray(pad.reshape(hc, f, wc, f).any(axis=(1, 3)))
+    return block_any(mask, f)
 
 
 def door_cells(grid: np.ndarray, resolution: float) -> np.ndarray:

@@ -237,15 +237,25 @@ class OccupancyGrid:
         # only those are made (not the whole rays × K block).
         counts = np.searchsorted(t, lengths - np.where(hit, step, 0.0), side="left")
         ray = np.repeat(np.arange(len(lengths)), counts)
-        k = np.arange(len(ray)) - np.repeat(np.cumsum(counts) - counts, counts)
-        xs = ox + np.cos(angles)[ray] * t[k]
-        ys = oy + np.sin(angles)[ray] * t[k]
-        r, c = self.world_to_cell(xs, ys)
-        inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-        free_idx = r[inside] * w + c[inside]
+        # Sample k of a ray lies t[k] = k·step along it (t's own numbers: whole numbers of steps, times step).
+        tk = (np.arange(len(ray)) - np.repeat(np.cumsum(counts) - counts, counts)) * step
+        # The samples' cells, as world_to_cell gives them for the points ox + cos·t, oy + sin·t (the same
+        # operations, in place: these arrays hold tens of thousands of samples).
+        cells = []
+        for o, trig, corner in ((ox, np.cos(angles), self.origin[0]), (oy, np.sin(angles), self.origin[1])):
+            v = trig[ray]
+            v *= tk
+            v += o
+            v -= corner
+            v /= res
+            cells.append(np.floor(v, out=v).astype(np.int64))
+        free_idx = _flat_cells(cells[1], cells[0], h, w)
+        # A ray's samples are half a cell apart, so most fall in the cell of the one before: those repeats
+        # change nothing (a cell is updated once per scan) and are dropped before the rest of the work.
+        if free_idx.size:
+            free_idx = free_idx[np.r_[True, free_idx[1:] != free_idx[:-1]]]
         hr, hc = self.world_to_cell(ends_x[hit], ends_y[hit])
-        inside = (hr >= 0) & (hr < h) & (hc >= 0) & (hc < w)
-        hit_idx = hr[inside] * w + hc[inside]
+        hit_idx = _flat_cells(hr, hc, h, w)
         flat = self.logodds.reshape(-1)
         if hit_idx.size and free_idx.size:
             # End points win over rays grazing past them in the same scan (marked in the span of cells the scan
@@ -254,12 +264,10 @@ class OccupancyGrid:
             is_hit = np.zeros(max(int(free_idx.max()), int(hit_idx.max())) - lo + 1, dtype=bool)
             is_hit[hit_idx - lo] = True
             free_idx = free_idx[~is_hit[free_idx - lo]]
-        # Fancy-index += applies once per distinct index: each cell is updated once per scan.
-        flat[free_idx] += L_FREE
-        flat[hit_idx] += L_OCC
-        # Only the cells just updated can have left the clamps (every cell starts, and is set, within them).
-        touched = np.concatenate([free_idx, hit_idx])
-        flat[touched] = np.clip(flat[touched], L_MIN, L_MAX)
+        # Fancy-index assignment applies once per distinct index: each cell is updated once per scan, and kept
+        # within the clamps (only the cells updated can have left them; the two sets share no cell).
+        flat[free_idx] = np.clip(flat[free_idx] + L_FREE, L_MIN, L_MAX)
+        flat[hit_idx] = np.clip(flat[hit_idx] + L_OCC, L_MIN, L_MAX)
         if len(lengths):
             self._touch((min(ox, float(ends_x.min())), min(oy, float(ends_y.min())),
                          max(ox, float(ends_x.max())), max(oy, float(ends_y.max()))))
@@ -285,6 +293,14 @@ class OccupancyGrid:
         self.version += 1
         self._changes.append((self.version, extent))
         del self._changes[:-CHANGES_KEPT]
+
+
+def _flat_cells(rows: np.ndarray, cols: np.ndarray, h: int, w: int) -> np.ndarray:
+    """Flat indices ``row·w + col`` of the cells (rows, cols) that lie in an (h, w) grid, in their order."""
+    if rows.size and rows.min() >= 0 and rows.max() < h and cols.min() >= 0 and cols.max() < w:
+        return rows * w + cols  # all inside (a growing grid holds every ray): no mask to make and apply
+    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    return rows[inside] * w + cols[inside]
 
 
 def _classify(logodds: np.ndarray) -> np.ndarray:

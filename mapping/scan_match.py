@@ -32,10 +32,11 @@ from __future__ import annotations
 import math
 import weakref
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
+from homing.mapping.blocks import block_any
 from homing.mapping.grid import OccupancyGrid
 from homing.robot import Pose2
 from scipy import ndimage
@@ -243,7 +244,7 @@ class GridField:
             return
         self._occ[r0:r1, c0:c1] = occ
         tiles = np.zeros((t1 - t0 + 2, u1 - u0 + 2), bool)
-        tiles[1:-1, 1:-1] = changed.reshape(t1 - t0, t, u1 - u0, t).any(axis=(1, 3))
+        tiles[1:-1, 1:-1] = block_any(changed, t)
         dirty = ndimage.binary_dilation(tiles, np.ones((3, 3), bool))
         labels, _ = ndimage.label(dirty, np.ones((3, 3), int))
         for box in ndimage.find_objects(labels):
@@ -370,8 +371,9 @@ class CorrelativeMatcher:
         sub = pts[:: max(1, len(pts) // MAX_POINTS)]
         best = self._correlative(field, sub, prior)
         if self.refine:
-            best = self._gauss_newton(field, pts, best)
-        score = float(_score(field, pts, best))
+            best, score = self._gauss_newton_scored(field, pts, best)
+        else:
+            score = float(_score(field, pts, best))
         known, known_score = _known_fit(field, pts, best)
         return MatchResult(best, score, score >= self.min_score, known, known_score, int(round(known * len(pts))))
 
@@ -438,6 +440,11 @@ class CorrelativeMatcher:
     def _gauss_newton(self, field: LikelihoodField, pts: np.ndarray, start: Pose2,
                       anchor: np.ndarray = GN_ANCHOR_INFO) -> Pose2:
         """Refine ``start`` on ``field``, pulled towards it with information ``anchor`` (3, 3) per end point."""
+        return self._gauss_newton_scored(field, pts, start, anchor)[0]
+
+    def _gauss_newton_scored(self, field: LikelihoodField, pts: np.ndarray, start: Pose2,
+                             anchor: np.ndarray = GN_ANCHOR_INFO) -> tuple[Pose2, float]:
+        """:meth:`_gauss_newton`'s pose and its :func:`_score` (worked out there to choose it)."""
         xi = start.as_array().astype(float)
         # Anchor at the correlative optimum (itself tied to odometry where the scan is ambiguous): the
         # refinement is for sub-cell accuracy and must not slide along a corridor.
@@ -454,14 +461,17 @@ class CorrelativeMatcher:
             except np.linalg.LinAlgError:
                 break
             # Never step further than a cell or a degree at a time: the field is only locally smooth.
-            delta[:2] = np.clip(delta[:2], -field.resolution, field.resolution)
-            delta[2] = float(np.clip(delta[2], -ANGLE_STEP, ANGLE_STEP))
+            # (min and max, not np.clip: the same numbers without its overhead, this runs thousands of times)
+            step = field.resolution
+            delta[0], delta[1] = min(max(delta[0], -step), step), min(max(delta[1], -step), step)
+            delta[2] = float(min(max(delta[2], -ANGLE_STEP), ANGLE_STEP))
             xi = xi + delta
             if abs(delta[0]) + abs(delta[1]) < 1e-4 and abs(delta[2]) < 1e-4:
                 break
         out = Pose2.from_array(xi)
         # Keep the refinement only if it does not make the fit worse.
-        return out if _score(field, pts, out) >= _score(field, pts, start) else start
+        refined, kept = float(_score(field, pts, out)), float(_score(field, pts, start))
+        return (out, refined) if refined >= kept else (start, kept)
 
 
 def _residuals(field: LikelihoodField, pts: np.ndarray, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -472,10 +482,11 @@ def _residuals(field: LikelihoodField, pts: np.ndarray, xi: np.ndarray) -> tuple
     c, s = math.cos(xi[2]), math.sin(xi[2])
     wx = xi[0] + c * pts[:, 0] - s * pts[:, 1]
     wy = xi[1] + s * pts[:, 0] + c * pts[:, 1]
-    m, gx, gy = _bilinear(field, wx, wy)
+    u, v = _field_cells(field, wx, wy)
+    m, gx, gy = _interpolate(field, u, v)
     # d(world point)/d(theta) = (−s·px − c·py, c·px − s·py)
     dth = gx * (-s * pts[:, 0] - c * pts[:, 1]) + gy * (c * pts[:, 0] - s * pts[:, 1])
-    k = _known(field, wx, wy)
+    k = _known_cells(field, u, v)
     return np.column_stack([gx, gy, dth]) * k[:, None], (1.0 - m) * k
 
 
@@ -546,26 +557,54 @@ def _search(
     return out
 
 
-def _bilinear(field: LikelihoodField, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Field value and its gradient (per metre) at world points, bilinearly interpolated between cell centres."""
+def _bilinear(field: LikelihoodField, x: np.ndarray, y: np.ndarray,
+              gradient: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Field value and its gradient (per metre) at world points, bilinearly interpolated between cell centres
+    (``gradient=False``: the value alone, the gradient's two arrays None)."""
+    u, v = _field_cells(field, x, y)
+    return _interpolate(field, u, v, gradient)
+
+
+def _field_cells(field: LikelihoodField, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World points [m] in the field's cells (fractional columns, rows from its lower-left corner)."""
+    return (x - field.origin[0]) / field.resolution, (y - field.origin[1]) / field.resolution
+
+
+def _gather(values: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``values[rows, cols]`` for in-bounds cells; by one flat index where the array is contiguous (faster)."""
+    if values.flags.c_contiguous:
+        return values.ravel().take(rows * values.shape[1] + cols)
+    return values[rows, cols]
+
+
+def _interpolate(field: LikelihoodField, u: np.ndarray, v: np.ndarray,
+                 gradient: bool = True) -> tuple[np.ndarray, Any, Any]:
+    """:func:`_bilinear` at points given in the field's cells (:func:`_field_cells`)."""
     res = field.resolution
-    fx = (x - field.origin[0]) / res - 0.5
-    fy = (y - field.origin[1]) / res - 0.5
+    h, w = field.values.shape
+    if h < 2 or w < 2:
+        z = np.zeros_like(u)
+        return z, z, z
+    fx = u - 0.5
+    fy = v - 0.5
     x0 = np.floor(fx).astype(np.int64)
     y0 = np.floor(fy).astype(np.int64)
     ax, ay = fx - x0, fy - y0
-    h, w = field.values.shape
+    bx, by = 1 - ax, 1 - ay
     ok = (x0 >= 0) & (x0 < w - 1) & (y0 >= 0) & (y0 < h - 1)
-    x0c, y0c = np.clip(x0, 0, max(w - 2, 0)), np.clip(y0, 0, max(h - 2, 0))
-    v = field.values
-    if h < 2 or w < 2:
-        z = np.zeros_like(x)
-        return z, z, z
-    v00, v01 = v[y0c, x0c], v[y0c, x0c + 1]
-    v10, v11 = v[y0c + 1, x0c], v[y0c + 1, x0c + 1]
-    m = (1 - ay) * ((1 - ax) * v00 + ax * v01) + ay * ((1 - ax) * v10 + ax * v11)
-    gx = ((1 - ay) * (v01 - v00) + ay * (v11 - v10)) / res
-    gy = ((1 - ax) * (v10 - v00) + ax * (v11 - v01)) / res
+    x0c, y0c = np.minimum(np.maximum(x0, 0), w - 2), np.minimum(np.maximum(y0, 0), h - 2)
+    vals = field.values
+    if vals.flags.c_contiguous:
+        flat, i = vals.ravel(), y0c * w + x0c
+        v00, v01, v10, v11 = flat.take(i), flat.take(i + 1), flat.take(i + w), flat.take(i + (w + 1))
+    else:
+        v00, v01 = vals[y0c, x0c], vals[y0c, x0c + 1]
+        v10, v11 = vals[y0c + 1, x0c], vals[y0c + 1, x0c + 1]
+    m = by * (bx * v00 + ax * v01) + ay * (bx * v10 + ax * v11)
+    if not gradient:
+        return np.where(ok, m, 0.0), None, None
+    gx = (by * (v01 - v00) + ay * (v11 - v10)) / res
+    gy = (bx * (v10 - v00) + ax * (v11 - v01)) / res
     return np.where(ok, m, 0.0), np.where(ok, gx, 0.0), np.where(ok, gy, 0.0)
 
 
@@ -573,13 +612,19 @@ def _known(field: LikelihoodField, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """(M,) float 1.0 where the world point lies on an observed cell of the crop, else 0.0."""
     if field.known is None:
         return np.ones_like(x)
-    col = np.floor((x - field.origin[0]) / field.resolution).astype(np.int64)
-    row = np.floor((y - field.origin[1]) / field.resolution).astype(np.int64)
+    return _known_cells(field, *_field_cells(field, x, y))
+
+
+def _known_cells(field: LikelihoodField, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """:func:`_known` at points given in the field's cells (:func:`_field_cells`)."""
+    if field.known is None:
+        return np.ones_like(u)
+    col = np.floor(u).astype(np.int64)
+    row = np.floor(v).astype(np.int64)
     h, w = field.known.shape
     ok = (row >= 0) & (row < h) & (col >= 0) & (col < w)
-    out = np.zeros(len(x))
-    out[ok] = field.known[row[ok], col[ok]]
-    return out
+    on = _gather(field.known, np.minimum(np.maximum(row, 0), h - 1), np.minimum(np.maximum(col, 0), w - 1))
+    return (on & ok).astype(float)
 
 
 def _known_fit(field: LikelihoodField, pts: np.ndarray, pose: Pose2) -> tuple[float, float]:
@@ -588,14 +633,14 @@ def _known_fit(field: LikelihoodField, pts: np.ndarray, pose: Pose2) -> tuple[fl
     k = _known(field, wpts[:, 0], wpts[:, 1]) > 0
     if not k.any():
         return 0.0, 0.0
-    m, _, _ = _bilinear(field, wpts[k, 0], wpts[k, 1])
+    m, _, _ = _bilinear(field, wpts[k, 0], wpts[k, 1], gradient=False)
     return float(k.mean()), float(m.mean())
 
 
 def _score(field: LikelihoodField, pts: np.ndarray, pose: Pose2) -> float:
     """Mean interpolated field value under the scan placed at ``pose``."""
     wpts = pose.transform_points(pts)
-    m, _, _ = _bilinear(field, wpts[:, 0], wpts[:, 1])
+    m, _, _ = _bilinear(field, wpts[:, 0], wpts[:, 1], gradient=False)
     return float(m.mean()) if len(m) else 0.0
 
 

@@ -255,7 +255,9 @@ class ExploreLite:
         min_size = self.min_frontier_size if min_size is None else min_size
         cand = _bordering(ctx.grid, (ctx.grid == FREE) & np.isfinite(ctx.distance))
         n, labels = cv2.connectedComponents(cand.astype(np.uint8), connectivity=8)
-        rows, cols = np.nonzero(labels)
+        # The labelled cells are the candidates: np.nonzero's row-major (row, col), from the flat indices (a 2-D
+        # nonzero over a floor costs ten times the 1-D one).
+        rows, cols = np.divmod(np.flatnonzero(cand), cand.shape[1])
         lab = labels[rows, cols]
         order = np.argsort(lab, kind="stable")
         rows, cols, lab = rows[order], cols[order], lab[order]

@@ -30,12 +30,13 @@ centred there; do not use this for non-circular robots.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
 import cv2
 import numpy as np
-from homing.mapping.distance import distance_cells
+from homing.mapping.distance import squared_distance_cells
 from homing.mapping.navigable import inscribed_radius
 from homing.navigation.layers import (
     BumpMarks,
@@ -140,6 +141,8 @@ class Costmap:
         self._keepout_key: tuple[object, ...] | None = None
         self._lut = np.zeros(0, dtype=np.uint8)
         self._lut_key: tuple[float, ...] | None = None
+        # The grid update_static took last (a weak reference) and its version then: its changes since are read
+        self._static_from: tuple[weakref.ReferenceType[Any], int] | None = None
 
     # -- geometry -----------------------------------------------------------------
     @property
@@ -197,9 +200,19 @@ class Costmap:
 
     # -- layers -------------------------------------------------------------------
     def update_static(self, grid: Any) -> None:
-        """Take a new occupancy grid as the static layer (see :func:`grid_arrays`)."""
+        """Take a new occupancy grid as the static layer (see :func:`grid_arrays`).
+
+        A grid that says where it changed (``version`` and ``changed_since``, as
+        :class:`homing.mapping.grid.OccupancyGrid` does) and was the one taken last is read again only there.
+        """
         data, res, origin = grid_arrays(grid)
-        self.set_static(data, res, origin)
+        version = getattr(grid, "version", None)
+        last, region = self._static_from, None
+        source = last[0]() if last is not None else None
+        if last is not None and source is not None and source is grid and version is not None:
+            region = getattr(source, "changed_since", lambda _: None)(last[1])
+        self._set_static(data, res, origin, region)
+        self._static_from = (weakref.ref(grid), version) if version is not None else None
 
     def set_static(self, data: np.ndarray, resolution: float, origin: tuple[float, float]) -> None:
         """Static layer from an (H, W) int8 grid (≥ 50 lethal, < 0 unknown), resolution [m], origin (x, y) [m].
@@ -207,14 +220,39 @@ class Costmap:
         If the grid moved or grew, obstacle marks are carried over at their map positions.
         While :attr:`required` reaches beyond the grid, the layer is padded with unknown cells to span it.
         """
+        self._static_from = None  # not a grid update_static knows the changes of
+        self._set_static(data, resolution, origin)
+
+    def _set_static(self, data: np.ndarray, resolution: float, origin: tuple[float, float],
+                    region: tuple[int, int, int, int] | None = None) -> None:
+        """:meth:`set_static`; ``region`` (row0, row1, col0, col1) of ``data``: the only cells that can differ
+        from the data taken last (None: any)."""
         data = np.asarray(data)
         self._grid = (data, float(resolution), (float(origin[0]), float(origin[1])))
-        data, origin = self._pad_to_required(data, float(resolution), (float(origin[0]), float(origin[1])))
+        given = (float(origin[0]), float(origin[1]))
+        data, origin = self._pad_to_required(data, float(resolution), given)
         same = (
             data.shape == self.static.shape
             and resolution == self.resolution
             and origin == self.origin
         )
+        if same and region is not None:
+            # Only the cells the grid changed since: classified again there alone (on a large floor, a window).
+            below = int(round((given[1] - origin[1]) / resolution))
+            left = int(round((given[0] - origin[0]) / resolution))
+            r0, r1, c0, c1 = region[0] + below, region[1] + below, region[2] + left, region[3] + left
+            if r1 <= r0 or c1 <= c0:
+                return
+            window = data[r0:r1, c0:c1]
+            static = np.zeros(window.shape, dtype=np.uint8)
+            static[window < 0] = NO_INFORMATION
+            static[window >= 50] = LETHAL
+            changed = self.static[r0:r1, c0:c1] != static
+            if changed.any():
+                self.static[r0:r1, c0:c1] = static
+                rows, cols = np.flatnonzero(changed.any(axis=1)), np.flatnonzero(changed.any(axis=0))
+                self._inflate((r0 + int(rows[0]), r0 + int(rows[-1]) + 1, c0 + int(cols[0]), c0 + int(cols[-1]) + 1))
+            return
         old_pts = self.cell_to_world(np.argwhere(self.obstacles)) if not same and self.obstacles.any() else None
         static = np.zeros(data.shape, dtype=np.uint8)
         static[data < 0] = NO_INFORMATION
@@ -241,14 +279,14 @@ class Costmap:
         if box != self.required:
             self.required = box
             if self._grid is not None:
-                self.set_static(*self._grid)
+                self._set_static(*self._grid)
 
     def release(self) -> None:
         """Drop the :meth:`require` box: the costmap shrinks back to the grid at the next static update."""
         if self.required is not None:
             self.required = None
             if self._grid is not None:
-                self.set_static(*self._grid)
+                self._set_static(*self._grid)
 
     def _pad_to_required(self, data: np.ndarray, res: float,
                          origin: tuple[float, float]) -> tuple[np.ndarray, tuple[float, float]]:
@@ -425,11 +463,13 @@ class Costmap:
         lethal = (static == LETHAL) | self.obstacles[window] | self._unseen_layer(window)
         if lethal.any():
             # The exact Euclidean distance to the nearest lethal cell, so the squared distance in cells is an
-            # integer: the cost is a table lookup, not an exponential per cell.
-            cells = distance_cells(~lethal)
+            # integer: the cost is a table lookup, not an exponential per cell. (The squared distance itself
+            # indexes the table: the distance squared and rounded again gives it back, exactly, up to 2^22 cells²,
+            # far past the table's end.)
+            squared = squared_distance_cells((~lethal).view(np.uint8))
             lut = self._cost_table()
-            cost = lut[np.minimum(np.rint(cells * cells), len(lut) - 1).astype(np.intp)]
-            d = cells * np.float32(self.resolution)
+            cost = lut[np.minimum(squared, len(lut) - 1).astype(np.intp)]
+            d = np.sqrt(squared) * np.float32(self.resolution)
         else:
             d = np.full(lethal.shape, np.inf, dtype=np.float32)
             cost = np.zeros(lethal.shape, dtype=np.uint8)

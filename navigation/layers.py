@@ -71,6 +71,8 @@ class Keepout:
             raise ValueError("a keep-out disc has one centre")
         if self.radius <= 0.0 and len(pts) < 3:
             raise ValueError("a keep-out polygon needs at least 3 vertices")
+        # The edge by step, worked out once: the controllers ask for it every tick (a zone never changes).
+        object.__setattr__(self, "_edges", {})
 
     @classmethod
     def disc(cls, x: float, y: float, radius: float) -> Keepout:
@@ -80,7 +82,14 @@ class Keepout:
         return cls(np.array([[x, y]]), float(radius))
 
     def edge(self, step: float = EDGE_STEP) -> np.ndarray:
-        """(M, 2) [m] points along the zone's boundary, at most ``step`` apart."""
+        """(M, 2) [m] points along the zone's boundary, at most ``step`` apart (read-only: kept for the next call)."""
+        edges: dict[float, np.ndarray] = self._edges  # type: ignore[attr-defined]
+        if step not in edges:
+            edges[step] = self._edge(step)
+            edges[step].flags.writeable = False
+        return edges[step]
+
+    def _edge(self, step: float) -> np.ndarray:
         if self.radius > 0.0:
             n = max(8, int(math.ceil(2 * math.pi * self.radius / step)))
             a = np.linspace(0.0, 2 * math.pi, n, endpoint=False)

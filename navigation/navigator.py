@@ -229,6 +229,8 @@ class Navigator:
         self._backup: BackUp | None = None  # backing off a bump
         self._external = False  # following a path given by follow(): the caller plans
         self._path_samples: tuple[Any, np.ndarray, np.ndarray] | None = None  # _path_blocked's, for the path it had
+        # _path_blocked's samples' flat cells and which lie in the costmap, for the lattice (origin, res, shape) then
+        self._path_cells: tuple[Any, np.ndarray, np.ndarray] | None = None
         self._follow_yaw_tolerance = self.yaw_tolerance
 
     # -- world model -----------------------------------------------------------------------
@@ -415,18 +417,26 @@ class Navigator:
         """
         if self.path is None or len(self.path) < 2:
             return self.path is None
-        key = (id(self.path), self.costmap.resolution)
+        costmap = self.costmap
+        key = (id(self.path), costmap.resolution)
         if self._path_samples is None or self._path_samples[0] != key or self._path_samples[1] is not self.path:
             # Sampled once per path (a path is replanned about once a second; this runs every tick).
             seg = np.diff(self.path, axis=0)
-            n = np.maximum(1, np.ceil(np.hypot(*seg.T) / (0.5 * self.costmap.resolution))).astype(int)
+            n = np.maximum(1, np.ceil(np.hypot(*seg.T) / (0.5 * costmap.resolution))).astype(int)
             samples = np.concatenate([a + np.linspace(0, 1, k, endpoint=False)[:, None] * d
                                       for a, d, k in zip(self.path[:-1], seg, n, strict=True)])
             self._path_samples = (key, self.path, samples)
+            self._path_cells = None
         pts = self._path_samples[2]
-        pts = pts[np.hypot(pts[:, 0] - pose.x, pts[:, 1] - pose.y) > ESCAPE_RADIUS]
-        cost = self.costmap.cost_at(pts)
-        blocked = cost >= INSCRIBED
+        # The samples' cells, found once per path and costmap lattice (the costs under them are read each tick).
+        lattice = (costmap.origin, costmap.resolution, costmap.shape)
+        if self._path_cells is None or self._path_cells[0] != lattice:
+            rc = costmap.world_to_cell(pts)
+            inside = costmap.inside(rc)
+            self._path_cells = (lattice, np.where(inside, rc[:, 0] * costmap.shape[1] + rc[:, 1], 0), inside)
+        _, cells, inside = self._path_cells
+        cost = np.where(inside, costmap.cost.reshape(-1).take(cells), NO_INFORMATION)  # as Costmap.cost_at
+        blocked = (cost >= INSCRIBED) & (np.hypot(pts[:, 0] - pose.x, pts[:, 1] - pose.y) > ESCAPE_RADIUS)
         if getattr(self.planner, "allow_unknown", False):
             blocked &= cost != NO_INFORMATION  # paths into the unknown are the plan, not a blockage
         return bool(np.any(blocked))

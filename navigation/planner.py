@@ -35,6 +35,7 @@ import cv2
 import numpy as np
 import pyastar2d
 import skfmm
+from homing.mapping.blocks import block_any
 from homing.navigation.costmap import INSCRIBED, LETHAL, MAX_NON_OBSTACLE, NO_INFORMATION, Costmap
 from homing.robot import Pose2
 from scipy.sparse import coo_matrix
@@ -286,12 +287,15 @@ def smooth_path(cells: np.ndarray, weights: np.ndarray, passes: int = SMOOTHING_
     """
     pts = shortcut(cells, weights)
     for it in range(passes - 1):
-        dense = [pts[:1]]
-        for a, b in zip(pts[:-1], pts[1:], strict=True):
-            k = max(1, int(math.ceil(float(np.hypot(*(b - a))))))
-            dense.append(a + np.linspace(0.0, 1.0, k + 1)[1:, None] * (b - a))
+        if len(pts) < 2:
+            break  # a path of one cell: nothing to pull
+        # Each leg a → b sampled at a + j/k·(b − a), j = 1..k, k its length in cells rounded up: all legs at once.
+        legs = pts[1:] - pts[:-1]
+        ks = np.maximum(np.ceil(np.hypot(legs[:, 0], legs[:, 1])).astype(int), 1)
+        fractions = np.concatenate([_fractions(k + 1)[1:] for k in ks.tolist()])
+        dense_pts = np.concatenate([pts[:1], np.repeat(pts[:-1], ks, axis=0)
+                                    + fractions[:, None] * np.repeat(legs, ks, axis=0)])
         # Alternate directions: a corner slides towards the end the pass starts from.
-        dense_pts = np.concatenate(dense)
         tighter = shortcut(dense_pts[::-1], weights)[::-1] if it % 2 == 0 else shortcut(dense_pts, weights)
         if len(tighter) >= len(pts) and _length(tighter) >= _length(pts) - 1e-9:
             break
@@ -531,10 +535,8 @@ def distance_map(costmap: Costmap, start: Pose2 | tuple[float, float],
     _, labels = cv2.connectedComponents(np.isfinite(w).astype(np.uint8), connectivity=4)
     reach = labels == labels[s]
     h, wd = reach.shape
-    hc, wc = -(-h // f), -(-wd // f)
-    blocks = np.zeros((hc * f, wc * f), bool)
-    blocks[:h, :wd] = reach
-    open_blocks = np.asarray(blocks.reshape(hc, f, wc, f).any(axis=(1, 3)))
+    open_blocks = block_any(reach, f)
+    hc, wc = open_blocks.shape
     # The start's block, and the start as a point in block coordinates (block centres at integers).
     t = _march(np.where(open_blocks, 1.0, np.inf), (s[0] // f, s[1] // f), speed=False,
                exact=((exact[0] + 0.5) / f - 0.5, (exact[1] + 0.5) / f - 0.5)) * (f * costmap.resolution)

@@ -9,6 +9,7 @@ seconds, volts); frames follow REP-103/105 (:mod:`homing.robot.frames`).
 from __future__ import annotations
 
 import enum
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -88,6 +89,14 @@ class Odometry:
     twist: Twist2
 
 
+@functools.lru_cache(maxsize=16)
+def _ray_angles(angle_min: float, angle_increment: float, n: int) -> np.ndarray:
+    """:attr:`Scan.angles`, worked out once per lidar (every scan of one asks for them several times)."""
+    angles = wrap_angles(angle_min + angle_increment * np.arange(n))
+    angles.flags.writeable = False
+    return angles
+
+
 @dataclass(frozen=True)
 class Scan:
     """One planar lidar sweep in the ``laser`` frame (REP-103: x forward, counter-clockwise).
@@ -107,8 +116,8 @@ class Scan:
 
     @property
     def angles(self) -> np.ndarray:
-        """(N,) ray angles in the laser frame [rad]."""
-        return wrap_angles(self.angle_min + self.angle_increment * np.arange(len(self.ranges)))
+        """(N,) ray angles in the laser frame [rad] (read-only: one array per lidar, kept)."""
+        return _ray_angles(self.angle_min, self.angle_increment, len(self.ranges))
 
     def valid(self) -> np.ndarray:
         """(N,) bool mask of rays with a return inside [range_min, range_max]."""

@@ -58,3 +58,15 @@ def test_battery_percent_formula_and_inverse() -> None:
 )
 def test_bumper_sectors(deg: float, sector: str | None) -> None:
     assert bumper_sector(math.radians(deg)) == sector
+
+
+def test_a_scans_kept_ray_angles_are_the_wrapped_angles_worked_out_afresh_and_cannot_be_changed() -> None:
+    from homing.robot.frames import wrap_angles
+
+    for amin, inc, n in ((-math.pi, math.radians(1.0), 360), (0.1, 0.0123, 500), (-1.2, 0.01, 240)):
+        first = Scan(0.0, amin, inc, np.ones(n, np.float32), 0.15, 6.0)
+        again = Scan(1.0, amin, inc, np.full(n, 2.0, np.float32), 0.15, 6.0)  # another scan of the same lidar
+        assert again.angles is first.angles  # kept, not worked out again
+        assert np.array_equal(first.angles, wrap_angles(amin + inc * np.arange(n)))
+        with pytest.raises(ValueError):
+            first.angles[0] = 0.0

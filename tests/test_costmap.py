@@ -167,3 +167,53 @@ def test_a_new_static_map_on_the_same_lattice_gives_what_a_full_recomputation_gi
     version = cm.version
     cm.set_static(g, RES, (0.0, 0.0))  # the same map again: nothing to redo
     assert cm.version == version
+
+
+def test_a_grid_read_again_only_where_it_changed_gives_the_layers_of_the_whole_grid_read_afresh() -> None:
+    from homing.mapping.grid import OccupancyGrid
+
+    rng = np.random.default_rng(9)
+    grid = OccupancyGrid(RES, (-2.0, -2.0), (80, 80))
+    kept, afresh = Costmap(), Costmap()
+    seen = 0
+    for step in range(40):
+        # A scan's worth of rays from a robot wandering east: the grid changes round it, and grows.
+        origin = np.array([0.15 * step, 0.3 * math.sin(step / 5.0)])
+        angles = np.linspace(-math.pi, math.pi, 180, endpoint=False)
+        lengths = rng.uniform(0.5, 3.0, 180)
+        grid.integrate_rays(origin, angles, lengths, rng.random(180) > 0.1)
+        if step == 15:
+            for cm in (kept, afresh):
+                cm.require(6.0, -1.0, 9.0, 1.0)  # a goal beyond the grid: the layer padded to it
+        if step == 30:
+            for cm in (kept, afresh):
+                cm.release()
+        kept.update_static(grid)
+        afresh.set_static(grid.data, grid.resolution, grid.origin)
+        seen += kept._static_from is not None
+        for name in ("static", "cost", "clearance", "obstacles"):
+            assert np.array_equal(getattr(kept, name), getattr(afresh, name)), (step, name)
+        assert kept.origin == afresh.origin
+    assert seen == 40  # its changes known at every step: read in windows whenever the grid did not grow
+
+
+def test_the_cost_looked_up_by_squared_distance_is_the_one_by_the_distance_squared_again() -> None:
+    from homing.mapping.distance import distance_cells, squared_distance_cells
+
+    rng = np.random.default_rng(13)
+    cm = Costmap()
+    for density in (0.0005, 0.01, 0.2):
+        g = np.where(rng.random((150, 170)) < density, 100, 0).astype(np.int8)
+        g[rng.random(g.shape) < 0.1] = -1
+        cm.set_static(g, RES, (0.0, 0.0))
+        # As first written: the distance, then its square rounded to index the table.
+        cells = distance_cells(cm.static != LETHAL)
+        lut = cm._cost_table()
+        cost = lut[np.minimum(np.rint(cells * cells), len(lut) - 1).astype(np.intp)]
+        cost[(cm.static == NO_INFORMATION) & (cost < INSCRIBED)] = NO_INFORMATION
+        assert np.array_equal(cm.cost, cost)
+        assert np.array_equal(cm.clearance, cells * np.float32(RES))
+    # Far past the table: the squared distance read back from the distance is still the same whole number.
+    n = np.arange(0, 1 << 22, dtype=np.float32)
+    assert np.array_equal(np.rint(np.sqrt(n) * np.sqrt(n)), n)
+    assert np.array_equal(np.sqrt(squared_distance_cells(np.ones((3, 3), bool))), distance_cells(np.ones((3, 3), bool)))

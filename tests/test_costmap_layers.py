@@ -168,3 +168,14 @@ def test_virtual_points_hand_the_unseen_to_the_controller() -> None:
     bearing = np.arctan2(near_bump[:, 1] - 3.0, near_bump[:, 0] - 3.0)
     assert np.all((bearing >= math.radians(30) - 1e-9) & (bearing <= math.radians(90) + 1e-9))
     assert np.allclose([wrap_angle(b) for b in bearing], bearing)
+
+
+def test_a_zones_kept_edge_is_the_edge_worked_out_afresh_and_cannot_be_changed() -> None:
+    for zone in (Keepout.disc(1.0, -2.0, 0.3), dock_keepout(Pose2(0.4, 0.2, 0.7))):
+        for step in (0.02, 0.025, 0.1):
+            kept = zone.edge(step)
+            assert zone.edge(step) is kept  # asked again: the same array, not worked out again
+            assert np.array_equal(kept, Keepout(zone.points, zone.radius).edge(step))  # a new zone's, afresh
+            assert np.all(np.hypot(*np.diff(np.vstack([kept, kept[:1]]), axis=0).T) <= step + 1e-9)
+            with pytest.raises(ValueError):
+                kept[0, 0] = 0.0  # read-only: a caller cannot spoil what the next one gets

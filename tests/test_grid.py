@@ -167,3 +167,53 @@ def test_changed_since_bounds_every_changed_cell_and_says_when_it_does_not_know(
     assert grid.changed_since(grid.version) == (0, 0, 0, 0)
     grid.clear_cache()  # changed from outside, nobody said where
     assert grid.changed_since(v) is None
+
+
+def _integrate_rays_reference(g: OccupancyGrid, origin: np.ndarray, angles: np.ndarray, lengths: np.ndarray,
+                              hit: np.ndarray) -> None:
+    """Ray tracing as first written (every sample, masks over all of them), to hold the faster one to its bits."""
+    from homing.mapping.grid import L_FREE, L_MAX, L_MIN, L_OCC
+
+    ox, oy = float(origin[0]), float(origin[1])
+    ends_x, ends_y = ox + lengths * np.cos(angles), oy + lengths * np.sin(angles)
+    if g.grow and len(lengths):
+        g.ensure_contains(min(ox, float(ends_x.min())), min(oy, float(ends_y.min())),
+                          max(ox, float(ends_x.max())), max(oy, float(ends_y.max())))
+    h, w = g.shape
+    step = 0.5 * g.resolution
+    t = np.arange(int(math.ceil(float(lengths.max(initial=0.0)) / step)) + 1, dtype=float) * step
+    counts = np.searchsorted(t, lengths - np.where(hit, step, 0.0), side="left")
+    ray = np.repeat(np.arange(len(lengths)), counts)
+    k = np.arange(len(ray)) - np.repeat(np.cumsum(counts) - counts, counts)
+    r, c = g.world_to_cell(ox + np.cos(angles)[ray] * t[k], oy + np.sin(angles)[ray] * t[k])
+    inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+    free_idx = r[inside] * w + c[inside]
+    hr, hc = g.world_to_cell(ends_x[hit], ends_y[hit])
+    inside = (hr >= 0) & (hr < h) & (hc >= 0) & (hc < w)
+    hit_idx = hr[inside] * w + hc[inside]
+    flat = g.logodds.reshape(-1)
+    free_idx = free_idx[~np.isin(free_idx, hit_idx)]
+    flat[free_idx] += L_FREE
+    flat[hit_idx] += L_OCC
+    touched = np.concatenate([free_idx, hit_idx])
+    flat[touched] = np.clip(flat[touched], L_MIN, L_MAX)
+    g.clear_cache()
+
+
+def test_ray_tracing_gives_the_log_odds_of_the_first_formulas_to_the_bit() -> None:
+    rng = np.random.default_rng(5)
+    # A growing grid (every ray inside it) and a fixed one that rays leave; scans repeated until cells clamp.
+    for grow in (True, False):
+        fast = OccupancyGrid(0.05, (-3.0, -2.0), (80, 90), grow=grow)
+        slow = OccupancyGrid(0.05, (-3.0, -2.0), (80, 90), grow=grow)
+        room = rng.uniform(0.1, 6.0, 360)  # the same walls scan after scan, seen from near the same place
+        for _ in range(25):
+            origin = rng.uniform(-0.05, 0.05, 2)
+            angles = np.linspace(-math.pi, math.pi, 360, endpoint=False) + rng.uniform(-0.01, 0.01)
+            lengths = room + rng.normal(0.0, 0.02, 360)
+            lengths[rng.random(360) < 0.05] = 0.0
+            hit = rng.random(360) > 0.1
+            fast.integrate_rays(origin, angles, lengths, hit)
+            _integrate_rays_reference(slow, origin, angles, lengths, hit)
+            assert fast.origin == slow.origin and np.array_equal(fast.logodds, slow.logodds)
+        assert fast.logodds.min() == -4.0 and fast.logodds.max() == 4.0  # the clamps were reached

@@ -149,3 +149,43 @@ def test_a_goal_beyond_the_known_grid_is_reached_through_the_unknown() -> None:
     xy = np.array([[p.x, p.y] for p in trail])
     assert point_rect_distance(xy, MAZE).min() >= BASE_RADIUS  # walls seen only by the scan, never touched
     assert nav.costmap.shape == (60, 60)  # back to the grid once the goal is reached
+
+
+def test_the_path_check_with_its_kept_cells_finds_what_the_costmap_holds_under_the_path_each_time() -> None:
+    from homing.navigation.costmap import INSCRIBED, NO_INFORMATION
+    from homing.navigation.planner import ESCAPE_RADIUS
+
+    def fresh(nav: Navigator, path: np.ndarray, pose: Pose2) -> bool:
+        """The check as first written: the samples' costs looked up afresh, the robot's own stretch left out."""
+        seg = np.diff(path, axis=0)
+        n = np.maximum(1, np.ceil(np.hypot(*seg.T) / (0.5 * nav.costmap.resolution))).astype(int)
+        pts = np.concatenate([a + np.linspace(0, 1, k, endpoint=False)[:, None] * d
+                              for a, d, k in zip(path[:-1], seg, n, strict=True)])
+        pts = pts[np.hypot(pts[:, 0] - pose.x, pts[:, 1] - pose.y) > ESCAPE_RADIUS]
+        cost = nav.costmap.cost_at(pts)
+        return bool(np.any((cost >= INSCRIBED) & (cost != NO_INFORMATION)))
+
+    nav = Navigator(planner="astar", planner_params={"allow_unknown": True})
+    grid = np.zeros((120, 120), np.int8)
+    grid[:, 100:] = -1  # unknown beyond x = 5 m
+    nav.costmap.set_static(grid, RES, (0.0, 0.0))
+    path = np.array([[0.5, 0.5], [3.0, 1.0], [4.0, 3.5], [6.5, 4.0]])  # its last leg into the unknown
+    nav.path = path
+    seen = set()
+    for step in range(6):
+        if step == 2:
+            grid[40:44, 50:90] = 100  # a wall across the path
+            nav.costmap.set_static(grid, RES, (0.0, 0.0))
+        if step == 3:
+            nav.costmap.require(-2.0, -2.0, 8.0, 8.0)  # the costmap grows: other cells under the same path
+        if step == 4:
+            nav.costmap.set_static(grid, RES, (0.0, 0.0))
+            nav.costmap.release()
+        if step == 5:
+            grid[40:44, 50:90] = 0
+            nav.costmap.set_static(grid, RES, (0.0, 0.0))
+        for pose in (Pose2(0.5, 0.5, 0.0), Pose2(3.6, 2.1, 0.0), Pose2(4.2, 3.6, 0.0)):
+            got = nav._path_blocked(pose)
+            assert got == fresh(nav, path, pose)
+            seen.add(got)
+    assert seen == {True, False}  # both answers came up

@@ -227,3 +227,34 @@ def test_kept_weights_follow_every_costmap_change_to_the_bit() -> None:
     assert not np.isfinite(before[tuple(cm.world_to_cell(np.array([start.x, start.y]))[0])])
     assert path_length(make_planner("astar").plan(cm, start, Pose2(3.0, 3.0))) < 1.5
     assert np.array_equal(traversal_weights(cm), before)
+
+
+def test_the_smoothers_resampled_legs_give_the_path_of_the_leg_by_leg_resampling() -> None:
+    from homing.navigation.planner import SMOOTHING_PASSES, _length, shortcut, smooth_path
+
+    def leg_by_leg(cells: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """smooth_path as first written: each leg resampled by its own np.linspace."""
+        pts = shortcut(cells, weights)
+        for it in range(SMOOTHING_PASSES - 1):
+            dense = [pts[:1]]
+            for a, b in zip(pts[:-1], pts[1:], strict=True):
+                k = max(1, int(math.ceil(float(np.hypot(*(b - a))))))
+                dense.append(a + np.linspace(0.0, 1.0, k + 1)[1:, None] * (b - a))
+            dense_pts = np.concatenate(dense)
+            tighter = shortcut(dense_pts[::-1], weights)[::-1] if it % 2 == 0 else shortcut(dense_pts, weights)
+            if len(tighter) >= len(pts) and _length(tighter) >= _length(pts) - 1e-9:
+                break
+            pts = tighter
+        return pts
+
+    rng = np.random.default_rng(4)
+    weights = 1.0 + rng.random((60, 80)) * (rng.random((60, 80)) < 0.3) * 20.0
+    for _ in range(30):
+        # A staircase grid path between random cells, as a planner's would wind.
+        (r0, r1), (c0, c1) = rng.integers(0, 60, 2), rng.integers(0, 80, 2)
+        steps = [(0, int(np.sign(c1 - c0)))] * abs(int(c1 - c0)) + [(int(np.sign(r1 - r0)), 0)] * abs(int(r1 - r0))
+        rng.shuffle(steps)
+        cells = np.cumsum(np.array([(r0, c0), *steps], dtype=np.int64).reshape(-1, 2), axis=0)
+        assert np.array_equal(smooth_path(cells, weights), leg_by_leg(cells, weights))
+    one = np.array([[5, 5]], np.int64)
+    assert np.array_equal(smooth_path(one, weights), leg_by_leg(one, weights))

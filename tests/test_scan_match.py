@@ -14,14 +14,19 @@ from homing.robot import Pose2
 from tests.mapping_helpers import cast_scan, drifting_odometry, odometry_msg, path_poses, truth
 
 
-def test_matcher_recovers_a_known_offset():
+def _loop_corner() -> tuple[OccupancyGrid, np.ndarray, Pose2]:
+    """A grid of three scans from a corner of the loop world, a fourth scan's points there, and the pose."""
     world = truth("loop")
     pose = Pose2(-8.4, -8.4, 0.3)
     rng = np.random.default_rng(3)
     grid = OccupancyGrid(0.05)
     for _ in range(3):
         grid.integrate(cast_scan(world, pose, 0.0, rng), pose)
-    pts = cast_scan(world, pose, 0.0, rng).points()
+    return grid, cast_scan(world, pose, 0.0, rng).points(), pose
+
+
+def test_matcher_recovers_a_known_offset():
+    grid, pts, pose = _loop_corner()
     for dx, dy, dth in [(0.12, -0.08, 0.05), (-0.1, 0.15, -0.1)]:
         result = CorrelativeMatcher().match(grid, pts, Pose2(pose.x + dx, pose.y + dy, pose.theta + dth))
         assert result.ok
@@ -250,3 +255,69 @@ def test_pooling_is_the_max_of_each_two_by_two_block_padded_with_zeros(shape: tu
         padded[:h, :w] = values
         expect = padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).max(axis=(1, 3))
         assert np.array_equal(_pool(values), expect)
+
+
+def _bilinear_reference(field, x, y):
+    """The interpolation as first written (2-D fancy indexing, np.clip), to hold the faster one to its bits."""
+    res = field.resolution
+    fx = (x - field.origin[0]) / res - 0.5
+    fy = (y - field.origin[1]) / res - 0.5
+    x0 = np.floor(fx).astype(np.int64)
+    y0 = np.floor(fy).astype(np.int64)
+    ax, ay = fx - x0, fy - y0
+    h, w = field.values.shape
+    ok = (x0 >= 0) & (x0 < w - 1) & (y0 >= 0) & (y0 < h - 1)
+    x0c, y0c = np.clip(x0, 0, max(w - 2, 0)), np.clip(y0, 0, max(h - 2, 0))
+    v = field.values
+    v00, v01 = v[y0c, x0c], v[y0c, x0c + 1]
+    v10, v11 = v[y0c + 1, x0c], v[y0c + 1, x0c + 1]
+    m = (1 - ay) * ((1 - ax) * v00 + ax * v01) + ay * ((1 - ax) * v10 + ax * v11)
+    gx = ((1 - ay) * (v01 - v00) + ay * (v11 - v10)) / res
+    gy = ((1 - ax) * (v10 - v00) + ax * (v11 - v01)) / res
+    col = np.floor((x - field.origin[0]) / res).astype(np.int64)
+    row = np.floor((y - field.origin[1]) / res).astype(np.int64)
+    inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
+    known = np.zeros(len(x))
+    known[inside] = field.known[row[inside], col[inside]]
+    return np.where(ok, m, 0.0), np.where(ok, gx, 0.0), np.where(ok, gy, 0.0), known
+
+
+@pytest.mark.parametrize("view", [False, True])
+def test_the_fields_interpolation_and_known_cells_are_the_first_formulas_to_the_bit(view) -> None:
+    from homing.mapping.scan_match import LikelihoodField, _bilinear, _known, _residuals
+
+    rng = np.random.default_rng(3)
+    whole = rng.random((90, 100)).astype(np.float32)
+    known = rng.random((90, 100)) > 0.3
+    # A crop of a larger field is a view (not contiguous): the other gather.
+    values, seen = (whole[7:67, 5:75], known[7:67, 5:75]) if view else (whole[:60, :70].copy(), known[:60, :70].copy())
+    field = LikelihoodField(values, (1.0, 2.0), 0.05, seen)
+    # Points on the field, on its edges and off it.
+    x = np.concatenate([rng.uniform(0.8, 4.7, 3000), [1.0, 1.025, 4.5, 4.475, 0.9]])
+    y = np.concatenate([rng.uniform(1.8, 5.2, 3000), [2.0, 2.025, 5.0, 4.975, 5.3]])
+    m, gx, gy, k = _bilinear_reference(field, x, y)
+    got = _bilinear(field, x, y)
+    for a, b in zip(got, (m, gx, gy), strict=True):
+        assert np.array_equal(a, b)
+    assert np.array_equal(_bilinear(field, x, y, gradient=False)[0], m)
+    assert np.array_equal(_known(field, x, y), k)
+    # The Jacobian and residuals share the cells of the two: the same as built from the reference.
+    pts = np.column_stack([x, y]) - [2.5, 3.5]
+    xi = np.array([2.5, 3.5, 0.0])
+    J, r = _residuals(field, pts, xi)
+    assert np.array_equal(r, (1.0 - m) * k)
+    assert np.array_equal(J[:, 0], gx * k) and np.array_equal(J[:, 1], gy * k)
+
+
+def test_a_matchs_score_is_the_fields_mean_under_the_scan_at_the_refined_pose() -> None:
+    from homing.mapping.scan_match import _score
+
+    grid, points, pose = _loop_corner()
+    matcher = CorrelativeMatcher(refine=True)
+    for dx, dy, dth in [(0.12, -0.08, 0.05), (-0.1, 0.15, -0.1), (0.0, 0.0, 0.0)]:
+        prior = Pose2(pose.x + dx, pose.y + dy, pose.theta + dth)
+        result = matcher.match(grid, points, prior)
+        prepared = matcher._prepare(grid, points, prior, 5.0)
+        assert prepared is not None
+        # The score the refinement chose its pose by is the one a fresh look at that pose gives.
+        assert result.score == _score(prepared[1], prepared[0], result.pose)

@@ -203,3 +203,19 @@ def test_frontier_travel_leaves_a_goal_whose_frontier_was_seen_before_its_next_r
     near, far = seen.copy(), seen.copy()
     near[r + 29, c] = far[r + 31, c] = UNKNOWN  # in the corridor, FREE all round: 1.45 / 1.55 m off
     assert not ft.goal_spent(near, RES, (r, c)) and ft.goal_spent(far, RES, (r, c))
+
+
+def test_explore_lites_segments_are_the_labelled_cells_in_row_major_order_label_by_label() -> None:
+    import cv2
+    from homing.mapping.strategies import _bordering
+
+    ctx = _ctx()
+    segs = make_strategy("explore_lite").frontiers(ctx, 0.0)
+    cand = _bordering(ctx.grid, (ctx.grid == FREE) & np.isfinite(ctx.distance))
+    _, labels = cv2.connectedComponents(cand.astype(np.uint8), connectivity=8)
+    rows, cols = np.nonzero(labels)  # as first written: the 2-D nonzero of the labels
+    want = [np.column_stack([rows[labels[rows, cols] == k], cols[labels[rows, cols] == k]])
+            for k in range(1, int(labels.max()) + 1)]
+    assert len(segs) == len(want) >= 2
+    for seg, cells in zip(segs, want, strict=True):
+        assert seg.cells.dtype == np.int64 and np.array_equal(seg.cells, cells)
