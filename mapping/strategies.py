@@ -41,7 +41,10 @@ choose again live in :mod:`homing.mapping.explorer`, shared by all.
   when the one before is empty: first those at least ``LONG_FRONTIER`` long
   and the shorter ones of the room the robot stands in (:func:`robot_room`:
   what it reaches without passing a door); then every one of explore_lite's
-  minimum size; then ones down to ``CRUMB_SIZE``, so the run does not end
+  minimum size, and the ones down to ``CRUMB_SIZE`` nearer than the nearest
+  of those (a short frontier close by is looked at now, not after a trip
+  across the building and back: a door seen at a grazing angle is one, with
+  a room behind it); then ones down to ``CRUMB_SIZE``, so the run does not end
   short of the whole map (explore_lite's "ends early"). From a hospital's
   corridor the robot looks into each room through its door and sees a short
   frontier behind a bed: the first tier sweeps the corridor and the open
@@ -372,7 +375,8 @@ class FrontierTravel(ExploreLite):
     def goals(self, ctx: GoalContext, doors: np.ndarray | None = None) -> list[tuple[FrontierSegment, tuple[int, int]]]:
         """The frontiers to tour with their goals: those at least ``long_frontier`` long and the shorter ones in the
         robot's room (``doors`` (H, W) bool: the grid's doors, else found here); when none is left, every one of
-        explore_lite's minimum size; then those down to ``crumb_size`` (rather than stop short of the whole map:
+        explore_lite's minimum size, with the ones down to ``crumb_size`` the robot reaches before the nearest of
+        them (:meth:`_crumbs_before`); then those down to ``crumb_size`` (rather than stop short of the whole map:
         explore_lite's "ends early")."""
         free = _goal_cells(ctx)
         for size in (self.min_frontier_size, self.crumb_size):
@@ -393,9 +397,26 @@ class FrontierTravel(ExploreLite):
                     first.append((seg, cell))
                 if first:
                     return first
+                return out + self._crumbs_before(ctx, out, free)
             if out:
                 return out
         return []
+
+    def _crumbs_before(self, ctx: GoalContext, goals: list[tuple[FrontierSegment, tuple[int, int]]],
+                       free: np.ndarray) -> list[tuple[FrontierSegment, tuple[int, int]]]:
+        """The frontiers shorter than explore_lite's minimum (down to ``crumb_size``) whose goals are nearer the
+        robot (by path) than the nearest of ``goals``: every one is visited before "done" anyway, and one passed
+        now costs less than a trip across the building and back for it later (a door seen at a grazing angle
+        shows a short frontier, and the room behind it may be large)."""
+        near = min(float(ctx.distance[cell]) for _, cell in goals)
+        out = []
+        for seg in self.frontiers(ctx, self.crumb_size):
+            if seg.size * ctx.resolution >= self.min_frontier_size:
+                continue
+            cell = _centroid_goal(seg, ctx, free)
+            if cell is not None and float(ctx.distance[cell]) < near:
+                out.append((seg, cell))
+        return out
 
     def choose(self, ctx: GoalContext) -> GoalChoice | None:
         doors = self.doors(ctx.grid, ctx.resolution)

@@ -13,18 +13,21 @@ from homing.navigation.controller import (
     make_controller,
     safe_speed,
 )
+from homing.navigation.costmap import Costmap
 from homing.robot import Pose2, Twist2
 from homing.robot.turtlebot import BASE_RADIUS, FOOTPRINT_RADIUS, NAV_MAX_V
 
-from tests.navworld import point_rect_distance, scan_of, unicycle
+from tests.navworld import point_rect_distance, rasterise, scan_of, unicycle
 
 DT = 0.05  # [s] control period
 DECEL = 1.0  # [m/s²] the fake base cannot brake harder than this
 
 
 def _drive(path: np.ndarray, rects: np.ndarray, pose: Pose2, seconds: float, appear_at: float = 0.0,
-           name: str = "rpp", **params: object) -> tuple[list[Pose2], list[Twist2], int]:
-    """Run the controller on a unicycle whose speed changes at ≤ DECEL; obstacles show up at ``appear_at`` [s]."""
+           name: str = "rpp", costmap: Costmap | None = None,
+           **params: object) -> tuple[list[Pose2], list[Twist2], int]:
+    """Run the controller on a unicycle whose speed changes at ≤ DECEL; obstacles show up at ``appear_at`` [s]
+    (in the scan; ``costmap``, when given, is handed to the controller as it is)."""
     ctrl = make_controller(name, **params)
     speed = Twist2()
     poses, cmds, blocked = [pose], [], 0
@@ -34,7 +37,7 @@ def _drive(path: np.ndarray, rects: np.ndarray, pose: Pose2, seconds: float, app
         world = rects if t >= appear_at else empty
         pts = scan_of(pose, world, stamp=t).points() if len(world) else np.zeros((0, 2))
         try:
-            cmd = ctrl.compute(pose, speed, path, pts, None, DT)
+            cmd = ctrl.compute(pose, speed, path, pts, costmap, DT)
         except CollisionAhead:
             cmd, blocked = Twist2(), blocked + 1
         cmds.append(cmd)
@@ -76,6 +79,25 @@ def test_steers_past_an_obstacle_beside_the_path_without_stopping() -> None:
     wall = np.array([[1.0, 0.5, 5.0, 0.6]])  # parallel to the path, 0.5 m to the left
     _, cmds, blocked = _drive(path, wall, Pose2(0.0, 0.0, 0.0), 14.0)
     assert blocked == 0 and max(c.v for c in cmds) > 0.45
+
+
+def test_keeps_full_speed_beside_a_wall_it_clears() -> None:
+    # A wall along the path 0.12 m beyond the footprint, in the scan and in the costmap: the arc ahead is clear, so
+    # the robot runs at the speed limit beside it (the scan check, not the wall's nearness, sets the speed)…
+    gap = 0.12  # [m] between the footprint and the wall's face
+    wall = np.array([[0.0, 1.0 + FOOTPRINT_RADIUS + gap, 8.0, 1.3 + FOOTPRINT_RADIUS + gap]])
+    costmap = Costmap()
+    costmap.set_static(rasterise(wall, (8.0, 3.0), costmap.resolution), costmap.resolution, (0.0, 0.0))
+    path = np.array([[0.5, 1.0], [7.5, 1.0]])
+    poses, cmds, blocked = _drive(path, wall, Pose2(0.5, 1.0, 0.0), 8.0, costmap=costmap)
+    xy = np.array([[p.x, p.y] for p in poses])
+    assert blocked == 0 and point_rect_distance(xy, wall).min() >= BASE_RADIUS
+    beside = xy[1:, 0] > 2.0  # past the first metre and a half of acceleration
+    assert min(c.v for c, b in zip(cmds, beside, strict=True) if b) >= 0.95 * NAV_MAX_V
+    assert max(c.v for c in cmds) == pytest.approx(NAV_MAX_V)
+    # … while Nav2's proximity rule, asked for, still crawls there: v scaled by gap / cost_scaling_dist.
+    _, slow, _ = _drive(path, wall, Pose2(0.5, 1.0, 0.0), 8.0, costmap=costmap, cost_scaling_dist=0.3)
+    assert max(c.v for c in slow) <= NAV_MAX_V * (gap + costmap.resolution) / 0.3
 
 
 def test_free_distance_matches_geometry() -> None:

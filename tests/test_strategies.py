@@ -219,3 +219,54 @@ def test_explore_lites_segments_are_the_labelled_cells_in_row_major_order_label_
     assert len(segs) == len(want) >= 2
     for seg, cells in zip(segs, want, strict=True):
         assert seg.cells.dtype == np.int64 and np.array_equal(seg.cells, cells)
+
+
+def _corridor_past_a_door(crumb_cols: tuple[int, int]) -> tuple[GoalContext, np.ndarray]:
+    """A 2 m-wide corridor 12 m long along x, the robot at its west end behind a door (given as a mask across the
+    corridor, so nothing east of it is in the robot's room); a 1.4 m-wide pocket in the north wall near the east
+    end (a frontier of explore_lite's size, shorter than LONG_FRONTIER) and a 0.9 m-wide one in the south wall
+    at ``crumb_cols`` (its reachable frontier shorter than explore_lite's minimum: a crumb)."""
+    g = np.full((120, 260), UNKNOWN, dtype=np.int8)
+    g[40:80, 5:250] = FREE
+    g[40, 5:250] = g[79, 5:250] = OCCUPIED
+    g[40:80, 5] = g[40:80, 249] = OCCUPIED
+    for rows, cols, wall_rows in ((slice(79, 100), (214, 242), (80, 100)), (slice(20, 41), crumb_cols, (20, 40))):
+        g[rows, cols[0]:cols[1]] = FREE  # the pocket, unknown beyond its far end
+        g[wall_rows[0]:wall_rows[1], cols[0] - 1] = g[wall_rows[0]:wall_rows[1], cols[1]] = OCCUPIED
+    g[:40][g[:40] == UNKNOWN] = OCCUPIED  # solid south of the corridor but for the crumb's strip …
+    g[17:20, crumb_cols[0]:crumb_cols[1]] = UNKNOWN
+    g[100:][g[100:] == UNKNOWN] = OCCUPIED  # … and north of it but for the pocket's
+    g[100:103, 214:242] = UNKNOWN
+    g[80:100, :214][g[80:100, :214] == UNKNOWN] = OCCUPIED
+    g[80:100, 242:][g[80:100, 242:] == UNKNOWN] = OCCUPIED
+    robot = (60, 12)
+    doors = np.zeros(g.shape, bool)
+    doors[41:79, 20:24] = True
+    dist = travel_distance(g, RES, robot)
+    ctx = GoalContext(g, RES, (float(robot[0]), float(robot[1])), 0.0, dist, np.zeros(g.shape, bool),
+                      np.random.default_rng(0))
+    return ctx, doors
+
+
+def test_frontier_travel_looks_at_a_crumb_it_passes_before_the_frontier_beyond_it():
+    """Past the door, with no long frontier left: the crumb 3 m down the corridor is toured with the pocket 11 m
+    down it, and first (it is on the way); explore_lite's minimum alone would send the robot past it to the
+    pocket and back for it once nothing else was left."""
+    ft = make_strategy("frontier_travel")
+    ctx, doors = _corridor_past_a_door((60, 78))
+    sizes = sorted(seg.size * RES for seg in ft.frontiers(ctx, ft.crumb_size))
+    assert len(sizes) == 2 and ft.crumb_size <= sizes[0] < ft.min_frontier_size <= sizes[1] < ft.long_frontier
+    goals = ft.goals(ctx, doors)
+    assert sorted(c[1] < 100 for _, c in goals) == [False, True]  # the crumb (west) and the pocket (east)
+    ft.doors = lambda grid, resolution: doors  # choose() with the same door as goals() above
+    choice = ft.choose(ctx)
+    assert choice is not None and choice.cell[1] < 100 and [c for _, c in ft.tour][1] > 200
+
+
+def test_frontier_travel_leaves_a_crumb_beyond_the_nearest_frontier_for_later():
+    """The same corridor with the crumb past the pocket (nearer the east end): it is no nearer than the pocket,
+    so it waits for the last tier, as before."""
+    ft = make_strategy("frontier_travel")
+    ctx, doors = _corridor_past_a_door((228, 246))
+    goals = ft.goals(ctx, doors)
+    assert len(goals) == 1 and goals[0][0].size * RES >= ft.min_frontier_size
