@@ -180,6 +180,13 @@ def _endpoints(costmap: Costmap, weights: np.ndarray, start: Pose2, goal: Pose2,
         # (after a bump the robot stands in the inflation of the mark, and the escape must not lead into it).
         away = costmap.clearance[r0:r1, c0:c1] >= costmap.clearance[sr, sc] - 1e-6
         esc = ~np.isfinite(win) & (costmap.cost[r0:r1, c0:c1] == INSCRIBED) & away
+        if costmap.cost[sr, sc] == NO_INFORMATION:
+            # The robot stands on cells the map has not seen (the lidar sees nothing within its minimum range,
+            # and a ray gap far off may leave a cell unknown): where its footprint is is free, whatever the map
+            # says, as Nav2's footprint clearing has it. The unknown cells under the footprint may be crossed.
+            rr, cc = np.ogrid[r0 - sr : r1 - sr, c0 - sc : c1 - sc]
+            under = (rr * rr + cc * cc) * costmap.resolution**2 <= costmap.inscribed_radius**2
+            esc |= ~np.isfinite(win) & (costmap.cost[r0:r1, c0:c1] == NO_INFORMATION) & under
         win[esc] = ESCAPE_PENALTY
     gr, gc = (int(g[0, 0]), int(g[0, 1]))
     if not costmap.inside(g)[0] or not np.isfinite(weights[gr, gc]):

@@ -150,6 +150,37 @@ def test_distance_map_does_not_change_with_an_unknown_margin_round_the_map() -> 
     assert not np.isfinite(boxed[:m]).any() and not np.isfinite(boxed[:, -m:]).any()  # the margin is never reached
 
 
+@pytest.mark.parametrize("hole", ["pinhole", "footprint", "edge"])
+def test_a_robot_standing_on_unknown_cells_still_has_a_distance_field(hole: str) -> None:
+    # bench explore, atrium:2 seed 0: the robot stopped on a cell the map had not seen (a ray gap far off, and the
+    # lidar sees nothing within its minimum range): the field from it was empty, "the robot stands in an
+    # obstacle", and a recovery round ran, twelve times. The cells under its footprint are free, whatever the map
+    # says: the field starts there and reaches the open floor round it, and nothing unknown beyond the footprint.
+    g = np.zeros((100, 100), dtype=np.int8)
+    g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = 100
+    rr, cc = np.indices(g.shape)
+    d = np.hypot(rr + 0.5 - 50.5, cc + 0.5 - 50.5) * RES  # from the start (2.525, 2.525) [m]
+    if hole == "pinhole":
+        g[50, 50] = -1
+    elif hole == "footprint":
+        g[d <= 0.5 * BASE_RADIUS] = -1
+    else:  # the robot at the edge of an unknown region: everything right of it unseen
+        g[1:-1, 50:-1] = -1
+    cm = Costmap()
+    cm.set_static(g, RES, (0.0, 0.0))
+    start = Pose2(50.5 * RES, 50.5 * RES)
+    out = distance_map(cm, start)
+    assert out[50, 50] < RES
+    far = np.isfinite(out) & (d > cm.inscribed_radius)
+    assert far.any()
+    assert np.all(g[far] == 0)  # beyond the footprint only seen free cells are reached
+    open_floor = (g == 0) & (cm.cost < 253)
+    assert np.array_equal(np.isfinite(out) & open_floor, open_floor)  # and every one of them
+    xy = cm.cell_to_world(np.argwhere(far))
+    truth = np.hypot(xy[:, 0] - start.x, xy[:, 1] - start.y)
+    assert np.all(out[far] <= 1.05 * truth + 0.3)  # straight out of the footprint, not round it
+
+
 @pytest.mark.parametrize("ring", [0.16, 0.20, 0.25])
 def test_a_start_walled_in_tighter_than_the_footprint_reaches_nothing_and_plans_fail_typed(ring: float) -> None:
     # bench persist, seed 1, day 5: home (the staging pose) fell in such a pocket of the costmap:
