@@ -16,7 +16,12 @@ every door jamb it turned at: 16–37 % of the time to 95 % coverage
 (61–175 s a run) on office:1–2, hospital:1, slam_office:1, the maze and the
 rings (``homing bench explore``, seed 0; on office:1 at gaps of 0.03–0.26 m
 beyond the footprint, median 0.13 m), with no bumper press on any of ten
-plans once it was taken away.
+plans once it was taken away. With nothing to check the arc against (no
+lidar, or no return near enough to count) the rule is back at
+``blind_scaling_dist`` (0.3 m, Nav2's): the costmap is then all the
+controller knows of the walls, and pure pursuit's lookahead, longer at
+speed, cuts the corners it turns round (a scripted robot without a lidar
+drove its centre within 0.075 m of a maze wall, the footprint being 0.176 m, without it).
 
 Whatever the controller wants, the commanded arc is then checked against
 the latest scan with the robot's round footprint (:func:`free_distance`):
@@ -54,6 +59,7 @@ ROTATE_OMEGA = 1.8  # [rad/s] in-place rotation speed (Nav2 default)
 MAX_OMEGA = 2.0  # [rad/s]
 MIN_RADIUS = 0.9  # [m] curvature regulation starts below this turning radius
 COST_SCALING_DIST = 0.0  # [m] obstacle-proximity regulation starts at this clearance beyond the footprint (0: off)
+BLIND_SCALING_DIST = 0.3  # [m] the same when there are no obstacle points to check the arc against
 MIN_REGULATED_V = 0.15  # [m/s] the curvature/proximity regulations never go below this
 APPROACH_DIST = 0.6  # [m] slow down over the last stretch to the goal
 MIN_APPROACH_V = 0.05  # [m/s]
@@ -175,6 +181,7 @@ class RegulatedPurePursuit:
     max_omega: float = MAX_OMEGA  # [rad/s]
     min_radius: float = MIN_RADIUS  # [m]
     cost_scaling_dist: float = COST_SCALING_DIST  # [m]
+    blind_scaling_dist: float = BLIND_SCALING_DIST  # [m]
     min_regulated_v: float = MIN_REGULATED_V  # [m/s]
     approach_dist: float = APPROACH_DIST  # [m]
     min_approach_v: float = MIN_APPROACH_V  # [m/s]
@@ -213,7 +220,7 @@ class RegulatedPurePursuit:
             return Twist2(0.0, math.copysign(self.rotate_omega, angle))
         dist2 = float(carrot @ carrot)
         kappa = 2.0 * carrot[1] / dist2 if dist2 > 1e-9 else 0.0
-        v = self._regulate(kappa, remaining, pose, costmap)
+        v = self._regulate(kappa, remaining, pose, costmap, blind=len(scan_points) == 0)
         v = min(v, max(0.0, speed.v) + self.max_accel * max(dt, 1e-3))
         v_safe = safe_speed(v, v * kappa, scan_points, self.footprint_radius + SAFETY_MARGIN)
         if v > 1e-6 and v_safe < 0.01:
@@ -229,18 +236,21 @@ class RegulatedPurePursuit:
     def _lookahead(self, v: float) -> float:
         return float(np.clip(abs(v) * self.lookahead_time, self.min_lookahead, self.max_lookahead))
 
-    def _regulate(self, kappa: float, remaining: float, pose: Pose2, costmap: Costmap | None) -> float:
+    def _regulate(self, kappa: float, remaining: float, pose: Pose2, costmap: Costmap | None,
+                  blind: bool = False) -> float:
         v = self.desired_v
         # Curvature: slow on tight turns (Macenski et al., eq. 5).
         if abs(kappa) > 1e-9 and 1.0 / abs(kappa) < self.min_radius:
             v *= (1.0 / abs(kappa)) / self.min_radius
-        # Proximity (off unless cost_scaling_dist > 0): slow where the footprint is close to something in the costmap.
-        if self.cost_scaling_dist > 0 and costmap is not None and costmap.cost.size:
+        # Proximity (off unless cost_scaling_dist > 0, or blind: no points for the scan check): slow where the
+        # footprint is close to something in the costmap.
+        scaling = max(self.cost_scaling_dist, self.blind_scaling_dist) if blind else self.cost_scaling_dist
+        if scaling > 0 and costmap is not None and costmap.cost.size:
             rc = costmap.world_to_cell(np.array([pose.x, pose.y]))
             if costmap.inside(rc)[0]:
                 gap = float(costmap.clearance[rc[0, 0], rc[0, 1]]) - self.footprint_radius
-                if gap < self.cost_scaling_dist:
-                    v *= max(gap, 0.0) / self.cost_scaling_dist
+                if gap < scaling:
+                    v *= max(gap, 0.0) / scaling
         v = max(v, min(self.min_regulated_v, self.desired_v))
         # Approach: slow over the last metres so the goal is not overshot.
         if remaining < self.approach_dist:

@@ -98,6 +98,10 @@ def test_keeps_full_speed_beside_a_wall_it_clears() -> None:
     # … while Nav2's proximity rule, asked for, still crawls there: v scaled by gap / cost_scaling_dist.
     _, slow, _ = _drive(path, wall, Pose2(0.5, 1.0, 0.0), 8.0, costmap=costmap, cost_scaling_dist=0.3)
     assert max(c.v for c in slow) <= NAV_MAX_V * (gap + costmap.resolution) / 0.3
+    # … and so does the default with no scan to check the arc against (the wall only in the costmap): blind, the
+    # costmap's nearness is all it knows of the wall.
+    _, blind, _ = _drive(path, wall, Pose2(0.5, 1.0, 0.0), 8.0, appear_at=1e9, costmap=costmap)
+    assert max(c.v for c in blind) <= NAV_MAX_V * (gap + costmap.resolution) / 0.3
 
 
 def test_free_distance_matches_geometry() -> None:
