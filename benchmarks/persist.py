@@ -16,7 +16,8 @@ stands at each dock (:func:`homing.mapping.evaluate.cell_agreement`, the
 map pinned at the robot's true start; and after the small rigid correction
 that aligns it best, :func:`~homing.mapping.evaluate.aligned_agreement`),
 resident memory over time (``--plot`` draws it), wall time and the real-time
-factor — and where the wall time went, part by part of the tick (the
+factor, the process's CPU time per simulated day (``cpu_per_day_min``: what a
+loaded machine's waits do not inflate) — and where the wall time went, part by part of the tick (the
 runner's own timing). JSON keys: ``dock_cycles``, ``interventions``,
 ``min_battery_pct``, ``rss_growth_after_1h_pct``, ``rtf``, ``map_agreement_min``
 (and ``map_agreement_aligned_min``). Stopped by Ctrl-C or SIGTERM, it prints
@@ -196,7 +197,7 @@ def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes
     timing: dict[str, float] = {}
     interventions: list[tuple[float, str]] = []
     interrupted = False
-    wall0 = time.monotonic()
+    wall0, cpu0 = time.monotonic(), time.process_time()
     with tempfile.TemporaryDirectory() as tmp:
         run_dir = RunDir(Path(tmp) / "run")
         snap = None
@@ -220,8 +221,8 @@ def live(world_spec: str, seed: int, horizon: float, fault_every: float, changes
                     snap.sim = None
         finally:
             robot.close()
-    wall = time.monotonic() - wall0
-    return {"life": life, "timing": timing, "interventions": interventions, "wall": wall,
+    wall, cpu = time.monotonic() - wall0, time.process_time() - cpu0
+    return {"life": life, "timing": timing, "interventions": interventions, "wall": wall, "cpu": cpu,
             "changes": len(world_changes), "faults": len(robot.faults), "time": robot.clock.now(),
             "interrupted": interrupted}
 
@@ -276,7 +277,9 @@ def run(args: argparse.Namespace) -> int:
                ["area mapped m²", life.area], ["map agreement min", min(agree, default=math.nan)],
                ["map agreement min, aligned", min((a for _, a in life.aligned), default=math.nan)],
                ["RSS growth after 1 h %", growth], ["wall time s", wall], ["real-time factor", sim / wall],
-               ["wall per simulated day min", wall / max(sim / DAY, 1e-9) / 60.0]]
+               ["wall per simulated day min", wall / max(sim / DAY, 1e-9) / 60.0],
+               # CPU time (one process, the simulator in it) does not count the waits for a loaded machine's cores.
+               ["CPU time s", out["cpu"]], ["CPU per simulated day min", out["cpu"] / max(sim / DAY, 1e-9) / 60.0]]
     print_table("in all", ["figure", "value"], summary)
     total = sum(out["timing"].values())
     parts = sorted(out["timing"].items(), key=lambda kv: -kv[1])
@@ -298,6 +301,7 @@ def run(args: argparse.Namespace) -> int:
         "intervention_reasons": out["interventions"], "min_battery_pct": min(life.lowest.values()),
         "min_battery_base_pct": life.lowest["base"], "min_battery_computer_pct": life.lowest["computer"],
         "rss_growth_after_1h_pct": growth, "rss_mb": rss, "rtf": sim / wall, "wall_s": wall,
+        "cpu_s": out["cpu"], "cpu_per_day_min": out["cpu"] / max(sim / DAY, 1e-9) / 60.0,
         "map_agreement_min": min(agree, default=math.nan), "map_agreement": life.agreement,
         "map_agreement_aligned_min": min((a for _, a in life.aligned), default=math.nan),
         "map_agreement_aligned": life.aligned,

@@ -91,6 +91,9 @@ def test_bench_persist_interrupted_writes_the_figures_of_the_time_it_simulated(
     assert data["interrupted"] is True
     assert 20.0 / persist.DAY < data["simulated_days"] < 120.0 / persist.DAY
     assert data["interventions"] == 0 and data["days"] == 1.0
+    # The process's CPU time: spent (the simulator runs in it), and per simulated day in proportion to the time run.
+    assert data["cpu_s"] > 0.0
+    assert data["cpu_per_day_min"] * 60.0 * data["simulated_days"] == pytest.approx(data["cpu_s"], rel=1e-9)
 
 
 def test_bench_persist_counts_a_robot_that_stays_away_from_its_dock_as_an_intervention(
