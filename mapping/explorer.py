@@ -362,18 +362,22 @@ class Explorer:
             distance = field()
             choice = self.strategy.choose(self._context(grid, pose, distance))
             self._last_choice = now
-            if choice is None and not (replan and self.goal is not None) and self._retry_now(grid, distance):
-                choice = self.strategy.choose(self._context(grid, pose, distance))
             if choice is None:
                 if replan and self.goal is not None:
                     return ExploreStep(self.goal, False, False, self.choice)
                 self.goal, self.choice = None, None
                 step = self._no_goal(grid, pose, distance)
+                # Places given up for a transient reason are tried again when nothing nearer is worth the trip (a
+                # site the map asks for, nearer, comes first).
+                near = math.inf if step is not None or self.choice is None else float(distance[self.choice.cell])
+                if self._retry_now(grid, distance, near):
+                    choice = self.strategy.choose(self._context(grid, pose, distance))
+                    step = self._no_goal(grid, pose, distance) if choice is None else None
                 if step is not None:
                     return step
-                choice = self.choice
+                choice = choice if choice is not None else self.choice
                 assert choice is not None
-            else:
+            if choice is not self.choice:  # the strategy's choice
                 self.cut_offs = 0
                 self._declined = None
             gx, gy = grid.cell_to_world(*choice.cell)
@@ -388,11 +392,12 @@ class Explorer:
             self.choice = choice
         return ExploreStep(self.goal, changed, False, self.choice)
 
-    def _retry_now(self, grid: OccupancyGrid, distance: np.ndarray) -> bool:
+    def _retry_now(self, grid: OccupancyGrid, distance: np.ndarray, nearer_than: float) -> bool:
         """The strategy found nothing worth the trip: places given up for a transient reason that the costmap
-        reaches now leave the blacklist, once a round each (:func:`homing.mapping.giveups.reachable_again`)."""
+        reaches now, nearer than ``nearer_than`` [m], leave the blacklist, once a round each
+        (:func:`homing.mapping.giveups.reachable_again`)."""
         again = reachable_again(self.blacklist, self.blacklist_reasons, self.retried, distance, grid,
-                                self.blacklist_radius)
+                                self.blacklist_radius, nearer_than)
         self.retried += [self.blacklist[i] for i in sorted(again)]
         self._drop(again)
         return bool(again)

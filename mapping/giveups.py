@@ -33,10 +33,12 @@ def settled(reason: str) -> bool:
 
 
 def reachable_again(points: list[tuple[float, float]], reasons: list[str], retried: list[tuple[float, float]],
-                    distance: np.ndarray, grid: OccupancyGrid, radius: float) -> set[int]:
+                    distance: np.ndarray, grid: OccupancyGrid, radius: float,
+                    nearer_than: float = math.inf) -> set[int]:
     """The indices of ``points`` ((x, y) [m] in ``map``) given up for a transient reason (:data:`TRANSIENT`), not
     within ``radius`` [m] of a place already ``retried`` this round, whose cells within ``radius`` the travel
-    ``distance`` field (inf: unreachable) now reaches: the places worth trying again now."""
+    ``distance`` field (inf: unreachable) now reaches, nearer than ``nearer_than`` [m]: the places worth trying
+    again now."""
     h, w = distance.shape
     k = int(math.ceil(radius / grid.resolution))
     out = set()
@@ -45,7 +47,7 @@ def reachable_again(points: list[tuple[float, float]], reasons: list[str], retri
             continue
         r, c = (int(v) for v in grid.world_to_cell(x, y))
         window = distance[max(r - k, 0) : min(r + k + 1, h), max(c - k, 0) : min(c + k + 1, w)]
-        if window.size and np.isfinite(window).any():
+        if window.size and window.min() < nearer_than:
             out.add(i)
     return out
 

@@ -93,5 +93,7 @@ def test_only_transient_reasons_the_costmap_reaches_are_tried_again() -> None:
     reasons = ["no_progress", "not_cleared", "no_progress, 3 rounds", "unreachable", "cut_off"]
     assert reachable_again(places, reasons, [], field, grid, 0.5) == {0, 4}
     assert reachable_again(places, reasons, [(2.1, 1.0)], field, grid, 0.5) == set()
+    near = float(field[grid.world_to_cell(2.0, 1.0)])
+    assert reachable_again(places, reasons, [], field, grid, 0.5, nearer_than=near - 1.0) == set()  # a nearer site
     unreachable = np.full_like(field, np.inf)
     assert reachable_again(places, reasons, [], unreachable, grid, 0.5) == set()
