@@ -79,6 +79,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from homing.mapping.frontier import OCCUPIED_AT
+from homing.mapping.giveups import LOOKED_AT, mapped, reachable_again, settled
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.navigable import disc, ways_in
 from homing.mapping.reachable import (
@@ -100,10 +101,10 @@ from homing.map_server import FREE, UNKNOWN
 REACH_RADIUS = 2 * BASE_RADIUS  # [m] about one robot diameter (thesis)
 PROGRESS_TIMEOUT = 30.0  # [s] explore_lite's progress_timeout
 PROGRESS_STEP = 0.10  # [m] the travel distance must shrink this much to count as progress
+DETOUR_SPEED = 0.35  # [m/s] a path grown longer than ever gives the goal the time to drive the extra at this speed
 BLACKLIST_RADIUS = 0.5  # [m]
 EXPLORED_RADIUS = 0.35  # [m] a goal with no unknown cell this close has been seen
 MAX_ARRIVALS = 2  # a place reached this often with its frontier still there is blacklisted (not_cleared)
-LOOKED_AT = "not_cleared"  # the one reason a place is given up after the robot stood at it and looked
 RETRY_ROUNDS = 2  # rounds a place given up before the robot looked at it is tried again, before it is given up for good
 CUT_OFF_TRIES = 4  # failures in a row on frontiers the costmap cuts off before they are given up (one recovery round)
 STANDS_GIVEN_UP = "stands given up"  # a site whose every place to look from was given up (and why those were)
@@ -160,8 +161,10 @@ class Explorer:
         # the way to, and the round they are tried again in
         self.reopened: list[GivenUp] = []  # places given up as narrower than the robot, measured open since
         # (the latest REOPENED_KEPT), their reasons' history ("…; way in now ≥ 0.40 m, the robot fits")
+        self.retried: list[tuple[float, float]] = []  # places tried again within this round (once a round each)
         self._best_distance = math.inf
         self._best_travel = math.inf  # the navigator's path length to the goal, the least so far [m]
+        self._longest_travel = 0.0  # [m] and the longest (a detour found since gives time to drive it)
         self._last_progress = 0.0
         self._last_choice = -math.inf
         self.fields = 0  # distance fields asked for (the costly part of a decision)
@@ -286,24 +289,6 @@ class Explorer:
         self.blacklist_reasons = [self.blacklist_reasons[i] for i in keep]
         self.cut_offs, self.goal, self.choice, self._declined = 0, None, None, None
 
-    def _mapped(self, grid: OccupancyGrid) -> set[int]:
-        """The blacklist's points with no unknown cell of ``grid`` within ``blacklist_radius``."""
-        data, res = grid.data, grid.resolution
-        h, w = data.shape
-        near_disc = disc(self.blacklist_radius / res).astype(bool)
-        n = near_disc.shape[0] // 2
-        out = set()
-        for i, (x, y) in enumerate(self.blacklist):
-            r, c = (int(v) for v in grid.world_to_cell(x, y))
-            if not (0 <= r < h and 0 <= c < w):
-                continue
-            r0, c0 = max(r - n, 0), max(c - n, 0)
-            patch = data[r0 : r + n + 1, c0 : c + n + 1]
-            near = near_disc[r0 - (r - n) : r0 - (r - n) + patch.shape[0], c0 - (c - n) : c0 - (c - n) + patch.shape[1]]
-            if not (patch[near] == UNKNOWN).any():
-                out.add(i)
-        return out
-
     def new_round(self, grid: OccupancyGrid | None = None, pose: Pose2 | None = None,
                   incomplete: bool = False) -> int:
         """A new start of exploration (a recovery round, the persistent mission's next round): places given up
@@ -311,13 +296,14 @@ class Explorer:
         given up is tried again (:meth:`forgive`), and places deferred to this round are, whatever the end;
         returns how many were forgiven."""
         self.round += 1
+        self.retried = []
         if grid is not None:
             # A place the map now holds whole (a room mapped since through another way, a doorway since seen
             # open) has no frontier left to give up: it leaves the list, and the end report, for good.
-            mapped = self._mapped(grid)
+            mapped_now = mapped(self.blacklist, grid, self.blacklist_radius)
             self.deferred = {p: r for p, r in self.deferred.items()
-                             if p not in {self.blacklist[i] for i in mapped}}
-            self._drop(mapped)
+                             if p not in {self.blacklist[i] for i in mapped_now}}
+            self._drop(mapped_now)
         forgiven = self.remeasure(grid, pose) if grid is not None and pose is not None else 0
         forgiven += self.forgive(grid, pose) if incomplete else 0
         due = {i for i, p in enumerate(self.blacklist) if self.deferred.get(p, math.inf) <= self.round}
@@ -381,11 +367,17 @@ class Explorer:
                     return ExploreStep(self.goal, False, False, self.choice)
                 self.goal, self.choice = None, None
                 step = self._no_goal(grid, pose, distance)
+                # Places given up for a transient reason are tried again when nothing nearer is worth the trip (a
+                # site the map asks for, nearer, comes first).
+                near = math.inf if step is not None or self.choice is None else float(distance[self.choice.cell])
+                if self._retry_now(grid, distance, near):
+                    choice = self.strategy.choose(self._context(grid, pose, distance))
+                    step = self._no_goal(grid, pose, distance) if choice is None else None
                 if step is not None:
                     return step
-                choice = self.choice
+                choice = choice if choice is not None else self.choice
                 assert choice is not None
-            else:
+            if choice is not self.choice:  # the strategy's choice
                 self.cut_offs = 0
                 self._declined = None
             gx, gy = grid.cell_to_world(*choice.cell)
@@ -395,10 +387,20 @@ class Explorer:
                 self.goal = new_goal
                 self.goals_chosen += 1
                 self._best_distance = float(distance[choice.cell])
-                self._best_travel = math.inf
+                self._best_travel, self._longest_travel = math.inf, 0.0
                 self._last_progress = now
             self.choice = choice
         return ExploreStep(self.goal, changed, False, self.choice)
+
+    def _retry_now(self, grid: OccupancyGrid, distance: np.ndarray, nearer_than: float) -> bool:
+        """The strategy found nothing worth the trip: places given up for a transient reason that the costmap
+        reaches now, nearer than ``nearer_than`` [m], leave the blacklist, once a round each
+        (:func:`homing.mapping.giveups.reachable_again`)."""
+        again = reachable_again(self.blacklist, self.blacklist_reasons, self.retried, distance, grid,
+                                self.blacklist_radius, nearer_than)
+        self.retried += [self.blacklist[i] for i in sorted(again)]
+        self._drop(again)
+        return bool(again)
 
     # ---------------------------------------------------------------- "done" means done
     def _no_goal(self, grid: OccupancyGrid, pose: Pose2, distance: np.ndarray) -> ExploreStep | None:
@@ -518,6 +520,11 @@ class Explorer:
             if travel < self._best_travel - PROGRESS_STEP:
                 self._best_travel = travel
                 self._last_progress = now
+            elif travel > self._longest_travel:
+                # A longer way than any so far (the short one closed on the costmap): the time to drive the extra
+                # length is no lack of progress (office:1 seed 0: a 19 m detour driven at 0.5 m/s timed out).
+                self._last_progress += (travel - max(self._longest_travel, self._best_travel)) / DETOUR_SPEED
+            self._longest_travel = max(self._longest_travel, travel)
         elif not grid.in_bounds(np.int64(r), np.int64(c)) or not np.isfinite(field()[r, c]):
             self._blacklist(self.goal.x, self.goal.y, "unreachable")
             return True
@@ -566,13 +573,6 @@ def _disc(mask: np.ndarray, row: float, col: float, radius: float) -> None:
     rows = np.arange(r0, r1)[:, None]
     cols = np.arange(c0, c1)[None, :]
     mask[r0:r1, c0:c1] |= (rows - row) ** 2 + (cols - col) ** 2 <= radius**2
-
-
-def settled(reason: str) -> bool:
-    """Whether a place given up for ``reason`` no longer keeps exploration incomplete: the robot looked at it from
-    where it is, or it was given up again on every retry round (:meth:`Explorer.forgive`: for good, or deferred to
-    a later round)."""
-    return reason == LOOKED_AT or " rounds" in reason
 
 
 def _cell_of(grid: OccupancyGrid, pose: Pose2) -> tuple[int, int]:
