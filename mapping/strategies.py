@@ -357,6 +357,23 @@ def _centroid_goal(seg: FrontierSegment, ctx: GoalContext, free: np.ndarray) -> 
     return int(near[j, 0]) + r0, int(near[j, 1]) + c0
 
 
+def _frontier_goal(seg: FrontierSegment, ctx: GoalContext, free: np.ndarray) -> tuple[int, int] | None:
+    """frontier_travel's goal for a segment: explore_lite's (:func:`_centroid_goal`) when it has one; else, when
+    the centroid is off the frontier and no reachable cell is near it — a frontier curved round a patch of
+    unknown in the middle of a hall, seen from every side, has its centroid in the patch, metres from any free
+    cell, and explore_lite never sends the robot to it — the segment's own cell nearest its centroid, moved to
+    the nearest of the ``free`` cells in the same way. None when that too has none (or the centroid is
+    excluded: the robot stands at it)."""
+    cell = _centroid_goal(seg, ctx, free)
+    if cell is not None:
+        return cell
+    cr, cc = seg.centroid()
+    if ctx.excluded[int(round(cr)), int(round(cc))]:
+        return None
+    j = int(np.argmin((seg.cells[:, 0] - cr) ** 2 + (seg.cells[:, 1] - cc) ** 2))
+    return _centroid_goal(FrontierSegment(seg.cells[j : j + 1], seg.label), ctx, free)
+
+
 class FrontierTravel(ExploreLite):
     """explore_lite's frontiers and centroid goals, visited in the order of the shortest tour (see module doc)."""
 
@@ -382,7 +399,7 @@ class FrontierTravel(ExploreLite):
         for size in (self.min_frontier_size, self.crumb_size):
             out = []
             for seg in self.frontiers(ctx, size):
-                cell = _centroid_goal(seg, ctx, free)
+                cell = _frontier_goal(seg, ctx, free)
                 if cell is not None:
                     out.append((seg, cell))
             if out and size == self.min_frontier_size:
@@ -413,7 +430,7 @@ class FrontierTravel(ExploreLite):
         for seg in self.frontiers(ctx, self.crumb_size):
             if seg.size * ctx.resolution >= self.min_frontier_size:
                 continue
-            cell = _centroid_goal(seg, ctx, free)
+            cell = _frontier_goal(seg, ctx, free)
             if cell is not None and float(ctx.distance[cell]) < near:
                 out.append((seg, cell))
         return out

@@ -67,3 +67,23 @@ def test_an_excluded_current_goal_is_not_kept():
     ft = make_strategy("frontier_travel")
     choice = ft.choose(_ctx(g, (94, 108), (96, 106)))
     assert choice is not None and choice.cell[1] > 125
+
+
+def test_a_patch_of_unknown_seen_from_every_side_is_a_goal():
+    """A 10 m × 10 m hall whose middle, a 3 m × 3 m patch, is still unknown, its edge seen from every side: one
+    12 m frontier round it, whose centroid lies in the patch 1.5 m from any free cell. explore_lite's rule has no
+    goal for it (the centroid is more than CENTROID_TOLERANCE from a reachable cell); frontier_travel goes to the
+    frontier's cell nearest its centroid (before the fix: no goal at all, and the patch was left for the very
+    end, when it had crumbled into short pieces round its edge)."""
+    g = np.full((200, 200), FREE, np.int8)
+    g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = OCCUPIED
+    g[70:130, 70:130] = UNKNOWN
+    robot = (20, 20)
+    ctx = _ctx(g, robot, None)
+    assert make_strategy("explore_lite").choose(ctx) is None
+    ft = make_strategy("frontier_travel")
+    choice = ft.choose(ctx)
+    assert choice is not None
+    r, c = choice.cell
+    middles = np.array([[69, 99.5], [130, 99.5], [99.5, 69], [99.5, 130]])  # the free cells mid-way along each side
+    assert g[r, c] == FREE and float(np.min(np.hypot(middles[:, 0] - r, middles[:, 1] - c))) <= 1.0
