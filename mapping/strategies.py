@@ -394,12 +394,13 @@ class FrontierTravel(ExploreLite):
         robot's room (``doors`` (H, W) bool: the grid's doors, else found here); when none is left, every one of
         explore_lite's minimum size, with the ones down to ``crumb_size`` the robot reaches before the nearest of
         them (:meth:`_crumbs_before`); then those down to ``crumb_size`` (rather than stop short of the whole map:
-        explore_lite's "ends early")."""
+        explore_lite's "ends early"); then, when none of those has a goal by explore_lite's rule, the ones down to
+        ``crumb_size`` with their goals by :func:`_frontier_goal`."""
         free = _goal_cells(ctx)
         for size in (self.min_frontier_size, self.crumb_size):
             out = []
             for seg in self.frontiers(ctx, size):
-                cell = _frontier_goal(seg, ctx, free)
+                cell = _centroid_goal(seg, ctx, free)
                 if cell is not None:
                     out.append((seg, cell))
             if out and size == self.min_frontier_size:
@@ -417,7 +418,14 @@ class FrontierTravel(ExploreLite):
                 return out + self._crumbs_before(ctx, out, free)
             if out:
                 return out
-        return []
+        # No frontier has a goal by explore_lite's rule: those whose centroids lie deep in unknown get one on
+        # themselves (:func:`_frontier_goal`), rather than leave the map's check to say done round them.
+        out = []
+        for seg in self.frontiers(ctx, self.crumb_size):
+            cell = _frontier_goal(seg, ctx, free)
+            if cell is not None:
+                out.append((seg, cell))
+        return out
 
     def _crumbs_before(self, ctx: GoalContext, goals: list[tuple[FrontierSegment, tuple[int, int]]],
                        free: np.ndarray) -> list[tuple[FrontierSegment, tuple[int, int]]]:
@@ -430,7 +438,7 @@ class FrontierTravel(ExploreLite):
         for seg in self.frontiers(ctx, self.crumb_size):
             if seg.size * ctx.resolution >= self.min_frontier_size:
                 continue
-            cell = _frontier_goal(seg, ctx, free)
+            cell = _centroid_goal(seg, ctx, free)
             if cell is not None and float(ctx.distance[cell]) < near:
                 out.append((seg, cell))
         return out

@@ -73,8 +73,8 @@ def test_a_patch_of_unknown_seen_from_every_side_is_a_goal():
     """A 10 m × 10 m hall whose middle, a 3 m × 3 m patch, is still unknown, its edge seen from every side: one
     12 m frontier round it, whose centroid lies in the patch 1.5 m from any free cell. explore_lite's rule has no
     goal for it (the centroid is more than CENTROID_TOLERANCE from a reachable cell); frontier_travel goes to the
-    frontier's cell nearest its centroid (before the fix: no goal at all, and the patch was left for the very
-    end, when it had crumbled into short pieces round its edge)."""
+    frontier's cell nearest its centroid, once no frontier has a goal by explore_lite's rule (before the fix: no
+    goal at all, and the explorer's map check was left to decide what to do round the patch)."""
     g = np.full((200, 200), FREE, np.int8)
     g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = OCCUPIED
     g[70:130, 70:130] = UNKNOWN
