@@ -449,9 +449,16 @@ class FrontierTravel(ExploreLite):
         if not goals:
             self.tour = []
             return None
-        current = self._current(ctx, goals)
         cells = np.array([c for _, c in goals], np.int64)
         start = ctx.distance[cells[:, 0], cells[:, 1]]
+        current = None
+        if ctx.current_goal is not None:
+            # The frontier driven to is the one passing nearest the current goal (its centroid, and so its goal,
+            # shifts as the lidar sees more of it; the frontier itself stays where it was, or recedes).
+            g = ctx.current_goal
+            near = [float(np.min(np.hypot(seg.cells[:, 0] - g[0], seg.cells[:, 1] - g[1]))) for seg, _ in goals]
+            if min(near) * ctx.resolution <= SAME_FRONTIER:
+                current = int(np.argmin(near))
         robot = (int(round(ctx.robot_cell[0])), int(round(ctx.robot_cell[1])))
         lengths = np.array([seg.size * ctx.resolution for seg, _ in goals])
         order = frontier_tour.plan(robot, ctx.grid, ctx.resolution, np.isfinite(ctx.distance), cells, start, current,
@@ -459,37 +466,6 @@ class FrontierTravel(ExploreLite):
         self.tour = [goals[i][1] for i in order]
         seg, cell = goals[order[0]]
         return GoalChoice(cell, seg, [s for s, _ in goals], -float(start[order[0]]))
-
-    def _current(self, ctx: GoalContext, goals: list[tuple[FrontierSegment, tuple[int, int]]]) -> int | None:
-        """The index in ``goals`` of the frontier driven to, or None; may append it to ``goals``.
-
-        The frontier driven to is the one passing nearest the current goal, of every frontier down to
-        ``crumb_size`` (its centroid, and so its goal, shifts as the lidar sees more of it; the frontier itself
-        stays where it was, or recedes). When that frontier is not among ``goals`` — its centroid fell within the
-        robot's reach disc as the robot came near (explore_lite's rule drops such a goal), or a tier left it out —
-        the robot keeps driving to its current goal while that is still a goal cell (reachable, not excluded),
-        and the tour's hysteresis weighs it as any current goal: it is not swapped for the next frontier along,
-        whose own centroid drops out the same way when the robot gets there (the robot went back and forth
-        between two such frontiers 1.8 m apart every replan, never arriving at either)."""
-        g = ctx.current_goal
-        if g is None:
-            return None
-        best, best_d, at = None, SAME_FRONTIER / ctx.resolution, None
-        for seg in self.frontiers(ctx, self.crumb_size):
-            d = np.hypot(seg.cells[:, 0] - g[0], seg.cells[:, 1] - g[1])
-            j = int(np.argmin(d))
-            if d[j] <= best_d:
-                best, best_d, at = seg, float(d[j]), seg.cells[j]
-        if best is None:
-            return None
-        for i, (seg, _) in enumerate(goals):
-            if bool(np.all(seg.cells == at, axis=1).any()):  # the same frontier (a segment's cells are its own)
-                return i
-        h, w = ctx.grid.shape
-        if 0 <= g[0] < h and 0 <= g[1] < w and np.isfinite(ctx.distance[g]) and not ctx.excluded[g]:
-            goals.append((best, g))
-            return len(goals) - 1
-        return None
 
     def goal_spent(self, grid: np.ndarray, resolution: float, cell: tuple[int, int]) -> bool:
         """True when no frontier cell (unknown, 4-adjacent to free) is left within ``SAME_FRONTIER`` of the goal
