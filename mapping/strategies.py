@@ -357,6 +357,23 @@ def _centroid_goal(seg: FrontierSegment, ctx: GoalContext, free: np.ndarray) -> 
     return int(near[j, 0]) + r0, int(near[j, 1]) + c0
 
 
+def _frontier_goal(seg: FrontierSegment, ctx: GoalContext, free: np.ndarray) -> tuple[int, int] | None:
+    """frontier_travel's goal for a segment: explore_lite's (:func:`_centroid_goal`) when it has one; else, when
+    the centroid is off the frontier and no reachable cell is near it — a frontier curved round a patch of
+    unknown in the middle of a hall, seen from every side, has its centroid in the patch, metres from any free
+    cell, and explore_lite never sends the robot to it — the segment's own cell nearest its centroid, moved to
+    the nearest of the ``free`` cells in the same way. None when that too has none (or the centroid is
+    excluded: the robot stands at it)."""
+    cell = _centroid_goal(seg, ctx, free)
+    if cell is not None:
+        return cell
+    cr, cc = seg.centroid()
+    if ctx.excluded[int(round(cr)), int(round(cc))]:
+        return None
+    j = int(np.argmin((seg.cells[:, 0] - cr) ** 2 + (seg.cells[:, 1] - cc) ** 2))
+    return _centroid_goal(FrontierSegment(seg.cells[j : j + 1], seg.label), ctx, free)
+
+
 class FrontierTravel(ExploreLite):
     """explore_lite's frontiers and centroid goals, visited in the order of the shortest tour (see module doc)."""
 
@@ -377,7 +394,8 @@ class FrontierTravel(ExploreLite):
         robot's room (``doors`` (H, W) bool: the grid's doors, else found here); when none is left, every one of
         explore_lite's minimum size, with the ones down to ``crumb_size`` the robot reaches before the nearest of
         them (:meth:`_crumbs_before`); then those down to ``crumb_size`` (rather than stop short of the whole map:
-        explore_lite's "ends early")."""
+        explore_lite's "ends early"); then, when none of those has a goal by explore_lite's rule, the ones down to
+        ``crumb_size`` with their goals by :func:`_frontier_goal`."""
         free = _goal_cells(ctx)
         for size in (self.min_frontier_size, self.crumb_size):
             out = []
@@ -400,7 +418,14 @@ class FrontierTravel(ExploreLite):
                 return out + self._crumbs_before(ctx, out, free)
             if out:
                 return out
-        return []
+        # No frontier has a goal by explore_lite's rule: those whose centroids lie deep in unknown get one on
+        # themselves (:func:`_frontier_goal`), rather than leave the map's check to say done round them.
+        out = []
+        for seg in self.frontiers(ctx, self.crumb_size):
+            cell = _frontier_goal(seg, ctx, free)
+            if cell is not None:
+                out.append((seg, cell))
+        return out
 
     def _crumbs_before(self, ctx: GoalContext, goals: list[tuple[FrontierSegment, tuple[int, int]]],
                        free: np.ndarray) -> list[tuple[FrontierSegment, tuple[int, int]]]:
