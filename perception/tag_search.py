@@ -48,12 +48,18 @@ def wall_views(data: np.ndarray, resolution: float, origin: tuple[float, float],
     gy, gx = np.gradient(d_wall)
     kept: list[tuple[float, float, float]] = []
     min_sq = spacing * spacing
+    # The poses kept so far, bucketed in squares of ``spacing``: one closer than that lies in the 3 × 3 squares
+    # round a candidate's, so each candidate is tested against those only (the same test, the same poses kept).
+    buckets: dict[tuple[int, int], list[tuple[float, float]]] = {}
     for r, c in zip(rows.tolist(), cols.tolist(), strict=True):
         x = origin[0] + (c + 0.5) * resolution
         y = origin[1] + (r + 0.5) * resolution
-        if any((x - kx) ** 2 + (y - ky) ** 2 < min_sq for kx, ky, _ in kept):
+        bx, by = math.floor(x / spacing), math.floor(y / spacing)
+        if any((x - kx) ** 2 + (y - ky) ** 2 < min_sq
+               for i in (bx - 1, bx, bx + 1) for j in (by - 1, by, by + 1) for kx, ky in buckets.get((i, j), ())):
             continue
         kept.append((x, y, math.atan2(-gy[r, c], -gx[r, c])))
+        buckets.setdefault((bx, by), []).append((x, y))
     return [Pose2(x, y, th) for x, y, th in kept]
 
 

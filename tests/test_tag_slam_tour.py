@@ -113,3 +113,36 @@ def test_unknown_space_keeps_views_away_and_visited_views_are_skipped():
     second = next_view(views, here, [first])
     assert second is not None and second.distance_to(first) > 1.0
     assert next_view(views, here, views) is None
+
+
+def test_wall_views_are_a_greedy_thinning_of_every_candidate_anywhere_on_the_floor():
+    """The thinning keeps the poses the row-major greedy rule keeps, on a floor of many rooms with its origin at
+    negative coordinates (the kept poses are looked up by squares of the spacing): kept poses are pairwise at
+    least the spacing apart, and every candidate of the band lies within the spacing of one kept before it."""
+    from scipy import ndimage
+
+    rng = np.random.default_rng(3)
+    res, origin, spacing = 0.05, (-7.3, -4.1), 2.0
+    data = np.zeros((300, 400), dtype=np.int8)
+    data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = 100
+    for _ in range(12):  # interior walls with doors
+        if rng.random() < 0.5:
+            r = int(rng.integers(20, 280))
+            data[r, :] = 100
+            data[r, int(rng.integers(10, 380)):][:20] = 0
+        else:
+            c = int(rng.integers(20, 380))
+            data[:, c] = 100
+            data[int(rng.integers(10, 280)):, c][:20] = 0
+    views = wall_views(data, res, origin, distance=1.2, spacing=spacing)
+    assert len(views) > 20
+    xy = np.array([(v.x, v.y) for v in views])
+    d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
+    assert (d[np.triu_indices(len(xy), 1)] >= spacing).all()
+    occupied = data >= 50
+    d_wall = ndimage.distance_transform_edt(~occupied) * res
+    d_other = ndimage.distance_transform_edt(data == 0) * res
+    rows, cols = np.nonzero((data == 0) & (np.abs(d_wall - 1.2) <= 0.15) & (d_other >= 0.35))
+    cx, cy = origin[0] + (cols + 0.5) * res, origin[1] + (rows + 0.5) * res
+    near = np.hypot(cx[:, None] - xy[None, :, 0], cy[:, None] - xy[None, :, 1]) < spacing
+    assert near.any(axis=1).all()
