@@ -46,20 +46,23 @@ def wall_views(data: np.ndarray, resolution: float, origin: tuple[float, float],
     if rows.size == 0:
         return []
     gy, gx = np.gradient(d_wall)
-    kept: list[tuple[float, float, float]] = []
+    # Greedy in row-major order: the first candidate left is kept and every candidate closer than ``spacing`` to
+    # it goes (only rows within ``spacing`` can hold one); what is left after it was never near a kept pose.
+    xs, ys = origin[0] + (cols + 0.5) * resolution, origin[1] + (rows + 0.5) * resolution
+    left = np.ones(rows.size, bool)
+    reach = int(math.ceil(spacing / resolution)) + 1
     min_sq = spacing * spacing
-    # The poses kept so far, bucketed in squares of ``spacing``: one closer than that lies in the 3 × 3 squares
-    # round a candidate's, so each candidate is tested against those only (the same test, the same poses kept).
-    buckets: dict[tuple[int, int], list[tuple[float, float]]] = {}
-    for r, c in zip(rows.tolist(), cols.tolist(), strict=True):
-        x = origin[0] + (c + 0.5) * resolution
-        y = origin[1] + (r + 0.5) * resolution
-        bx, by = math.floor(x / spacing), math.floor(y / spacing)
-        if any((x - kx) ** 2 + (y - ky) ** 2 < min_sq
-               for i in (bx - 1, bx, bx + 1) for j in (by - 1, by, by + 1) for kx, ky in buckets.get((i, j), ())):
-            continue
+    kept: list[tuple[float, float, float]] = []
+    i = 0
+    while i < rows.size:
+        r, c = int(rows[i]), int(cols[i])
+        x, y = float(xs[i]), float(ys[i])
         kept.append((x, y, math.atan2(-gy[r, c], -gx[r, c])))
-        buckets.setdefault((bx, by), []).append((x, y))
+        lo, hi = np.searchsorted(rows, r - reach), np.searchsorted(rows, r + reach, side="right")
+        near = (xs[lo:hi] - x) ** 2 + (ys[lo:hi] - y) ** 2 < min_sq
+        left[lo:hi] &= ~near
+        rest = np.flatnonzero(left[i + 1 :])
+        i = i + 1 + int(rest[0]) if rest.size else rows.size
     return [Pose2(x, y, th) for x, y, th in kept]
 
 
