@@ -41,7 +41,6 @@ from homing.navigation.controller import CONTROLLERS, CollisionAhead, InvalidPat
 from homing.navigation.costmap import MAX_NON_OBSTACLE, NO_INFORMATION, Costmap
 from homing.robot import Pose2, Twist2
 from homing.robot.turtlebot import FOOTPRINT_RADIUS, NAV_MAX_V
-from scipy.spatial import cKDTree
 
 SIM_TIME = 1.5  # [s] forward simulation horizon (Nav2 default 1.7)
 SIM_STEP = 0.1  # [s] time between simulated poses
@@ -101,18 +100,12 @@ def rollout(v0: float, w0: float, v_target: np.ndarray, w_target: np.ndarray, ac
     return poses, twists
 
 
-def scan_clearance(traj: np.ndarray, points: np.ndarray, radius: float,
-                   within: float = math.inf) -> tuple[np.ndarray, np.ndarray]:
+def scan_clearance(traj: np.ndarray, points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Per trajectory: (K,) bool whether the footprint touches a scan point, (K,) smallest gap [m] beyond ``radius``.
 
     ``traj`` (K, T, 3) in base_link, ``points`` (M, 2) in base_link. A point
     already inside the footprint at the start only counts if the trajectory
     brings the footprint closer to it (the robot may always move away).
-    A gap of ``within`` [m] or more is reported as ``inf``: the pairs of a
-    pose and a point farther apart than ``radius + within`` are never formed
-    (a k-d tree finds the near ones), so a finite ``within`` costs what the
-    near points cost, not poses × points; the distances of the pairs kept are
-    computed as without it, so the gaps under ``within`` are the same to the bit.
     """
     k = traj.shape[0]
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
@@ -120,24 +113,11 @@ def scan_clearance(traj: np.ndarray, points: np.ndarray, radius: float,
     pts = pts[np.hypot(pts[:, 0], pts[:, 1]) <= reach]
     if len(pts) == 0:
         return np.zeros(k, bool), np.full(k, math.inf)
+    d = np.hypot(traj[:, :, None, 0] - pts[None, None, :, 0], traj[:, :, None, 1] - pts[None, None, :, 1])
     d0 = np.hypot(pts[:, 0], pts[:, 1])  # (M,) from the start pose (the origin)
-    if not math.isfinite(within):  # every pose with every point
-        d = np.hypot(traj[:, :, None, 0] - pts[None, None, :, 0], traj[:, :, None, 1] - pts[None, None, :, 1])
-        touching = (d < radius) & (d < d0[None, None, :] - DEEPEN_EPS)
-        return touching.any(axis=(1, 2)), d.min(axis=(1, 2)) - radius
-    xy = traj[:, :, :2].reshape(-1, 2)
-    # The tree's distances may differ from hypot's in the last bit: a margin keeps every pair hypot puts inside.
-    near = cKDTree(xy).query_ball_point(pts, radius + within + 1e-6)
-    counts = np.fromiter((len(n) for n in near), np.intp, len(near))
-    pose_i = np.fromiter((i for n in near for i in n), np.intp, int(counts.sum()))
-    pt_i = np.repeat(np.arange(len(pts)), counts)
-    d = np.hypot(xy[pose_i, 0] - pts[pt_i, 0], xy[pose_i, 1] - pts[pt_i, 1])
-    row = pose_i // traj.shape[1]
-    hit = np.zeros(k, bool)
-    hit[row[(d < radius) & (d < d0[pt_i] - DEEPEN_EPS)]] = True
-    gap = np.full(k, math.inf)
-    np.minimum.at(gap, row, d - radius)  # min(d − r) is min(d) − r to the bit: rounding keeps order
-    gap[gap >= within] = math.inf
+    touching = (d < radius) & (d < d0[None, None, :] - DEEPEN_EPS)
+    hit = touching.any(axis=(1, 2))
+    gap = d.min(axis=(1, 2)) - radius
     return hit, gap
 
 
@@ -253,7 +233,7 @@ class DWB:
         v0 = min(max(speed.v, self.min_v), self.max_v)
         w0 = min(max(speed.omega, -self.max_omega), self.max_omega)
         traj, twists = rollout(v0, w0, v_t, w_t, self.acc_v, self.dec_v, self.acc_omega, SIM_STEP)
-        hit, gap = scan_clearance(traj, scan_points, self.footprint_radius, CLEARANCE_REF)
+        hit, gap = scan_clearance(traj, scan_points, self.footprint_radius)
         bad = hit | self._costmap_blocked(traj, pose, costmap)
         self.rejected = int(bad.sum())
         if bad.all():

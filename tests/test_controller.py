@@ -194,21 +194,3 @@ def test_rollout_and_scan_clearance_match_geometry() -> None:
     traj[1, :, 0] = -np.linspace(0.1, 0.5, 5)  # backwards: away from it and from one inside the disc
     hit, gap = scan_clearance(traj, np.array([[0.6, 0.0], [0.1, 0.0]]), 0.19)
     assert hit.tolist() == [True, False]
-
-
-def test_scan_clearance_near_pairs_only_gives_the_same_hits_and_critic() -> None:
-    """DWB asks only for gaps under its clearance critic's reach (``within``): the k-d tree's pairs must give the
-    same collisions, the same gaps under that reach to the bit, and ``inf`` (the critic's zero) beyond it."""
-    from homing.navigation.dwb import CLEARANCE_REF, scan_clearance
-
-    rng = np.random.default_rng(7)
-    for _ in range(100):
-        k, t, m = (int(v) for v in rng.integers(1, [60, 16, 300]))
-        traj = rng.normal(0.0, 0.5, (k, t, 3))
-        pts = rng.normal(0.0, 0.8, (m, 2))
-        hit, gap = scan_clearance(traj, pts, 0.19)
-        hit_near, gap_near = scan_clearance(traj, pts, 0.19, CLEARANCE_REF)
-        assert hit_near.tolist() == hit.tolist()
-        under = gap < CLEARANCE_REF
-        assert np.array_equal(gap_near[under], gap[under])
-        assert np.isinf(gap_near[~under]).all()
