@@ -38,7 +38,9 @@ m-explore #26, #68). This module asks the map alone:
    and the room behind it, 19 m², was never entered (coverage 0.947).
    A peek site the robot's centre reaches from (2) only across more than
    ``THROUGH`` of unknown space (known free cells cost nothing on the way,
-   walls are impassable: :func:`unknown_way`) is **seen through a wall**,
+   walls are impassable: :func:`unknown_way`, then on to where its edge
+   touches the site, not through a wall or a crack between wall cells:
+   :func:`within_reach`) is **seen through a wall**,
    given up at once and reported with that length, never visited: free cells
    the lidar saw through a crack in an outer wall (a ray slipping between
    wall cells), which the map joins to the robot's room only round the
@@ -225,7 +227,7 @@ def frontier_report(grid: OccupancyGrid, robot_xy: tuple[float, float],
     peeks = _sites(peek, grid, peek=True)
     if peeks:
         way = unknown_way(g, res, region, ~(clear & ((g == FREE) | (g == UNKNOWN))), THROUGH_MEASURED)
-        near_way = cv2.erode(way, reach_disc, borderValue=np.inf)  # the least unknown to a cell within reach of it
+        near_way = within_reach(way, g, res, robot_radius / res + 1.0)
         peeks = [dataclasses.replace(s, unknown=float(near_way[s.cells[:, 0], s.cells[:, 1]].min())) for s in peeks]
     walled = [s for s in peeks if not s.unknown <= THROUGH]
     reachable = _sites(reach_front, grid) + [s for s in peeks if s.unknown <= THROUGH]
@@ -266,6 +268,21 @@ def unknown_way(grid: np.ndarray, resolution: float, region: np.ndarray, blocked
         way[front] = k * resolution
         reached |= front
     return way
+
+
+def within_reach(way: np.ndarray, grid: np.ndarray, resolution: float, reach: float) -> np.ndarray:
+    """(H, W) float32: ``way`` (:func:`unknown_way`) carried on up to ``reach`` cells further, 4-connected, through
+    cells that are not walls (the footprint's edge reaching past where its centre fits): the unknown space on the
+    way to a cell the robot can touch. Not through a wall, nor between two wall cells that touch at a corner (the
+    crack a lidar ray slipped through), however near it is."""
+    open_ = grid < OCCUPIED_AT
+    unknown = grid == UNKNOWN
+    out = way.copy()
+    cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+    for _ in range(int(math.ceil(reach))):
+        step = cv2.erode(out, cross, borderValue=np.inf) + np.where(unknown, resolution, 0.0).astype(np.float32)
+        out = np.where(open_, np.minimum(out, step), out)
+    return out
 
 
 def site_blacklisted(site: FrontierSite, grid: OccupancyGrid, points: list[tuple[float, float]],
