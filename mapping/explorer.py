@@ -53,8 +53,8 @@ that were unreachable, no progress…) goes with them — no recovery brings
 those back — as ``stands given up (unreachable)``, tried again when they
 are (a later round), or as ``not_cleared`` when all were looked from; and
 so does a peek site that no cell of the map the robot fits in comes within
-``PEEK`` of (free cells seen through a wall, reached on the map only through
-unknown space): ``no place to look from within 0.75 m``, tried again on a
+``PEEK`` of (reached on the map only through unknown space; across more
+than ``THROUGH`` of it, the map gives it up itself: seen through a wall): ``no place to look from within 0.75 m``, tried again on a
 later round, when the map may have one. A
 site the costmap cuts off (inflation in a doorway, a transient obstacle, a
 localisation error) is a failure with a typed reason, ``frontier_cut_off``,
