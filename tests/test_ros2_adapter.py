@@ -195,7 +195,10 @@ def test_homing_is_in_the_ros_graph_with_rmw_zenoh_tokens(robot, peer):
     assert (f"@ros2_lv/0/{zid}/0/6/MP/%/%/homing/%cmd_vel/geometry_msgs::msg::dds_::Twist_/{twist_hash}/"
             "::,10:,:,:,,") in tokens  # fmt: skip
     assert any("/MS/%/%/homing/%tf_static/" in t and t.endswith("/:1:,1:,:,:,,") for t in tokens)
-    assert len(tokens) == 7  # node, scan, odom, battery, tf, tf_static, cmd_vel
+    # homing's world model is declared with the node, before the first tick publishes on it
+    assert any("/MP/%/%/homing/%mission%state/std_msgs::msg::dds_::String_/" in t and t.endswith("/:1:,1:,:,:,,")
+               for t in tokens)  # fmt: skip
+    assert len(tokens) == 14  # node, scan, odom, battery, tf, tf_static, cmd_vel; map, tf, plan, goal, state, status, tags
 
 
 def test_commands_reach_the_robot_as_twists_with_attachments_and_close_sends_zero(robot, peer):

@@ -51,6 +51,7 @@ from homing.robot.ros2 import wire
 from homing.robot.ros2.node import Ros2Node
 from homing.robot.ros2.robot_file import Ros2Config, load_ros2_robot, router_error
 from homing.robot.ros2.wire import LATCHED, SENSOR_DATA, Qos, Received
+from homing.robot.ros2.world import WorldPublisher
 from homing.robot.turtlebot import RobotLimits, battery_percent
 from homing.robot.types import (
     IR,
@@ -156,7 +157,6 @@ class Ros2Robot:
         self.failure: LinkLost | None = None
         self._link_ok, self._link_checked = True, -math.inf
         self._cmd = Twist2()
-        self._world: Any = None
         try:
             self.node = Ros2Node(c.node, domain=c.domain, namespace=c.namespace, mode="client", connect=[c.router])
         except Exception as err:  # zenoh.ZError: unreachable endpoint, refused…
@@ -189,6 +189,9 @@ class Ros2Robot:
             n.subscribe(c.camera_info, "sensor_msgs/msg/CameraInfo", SENSOR_DATA, lambda r: self._take("info", r))
         self.cmd_type = "geometry_msgs/msg/TwistStamped" if c.stamped else "geometry_msgs/msg/Twist"
         self.cmd_pub = n.publisher(c.cmd_vel, self.cmd_type, Qos())
+        # declared before the sensors are awaited, not at the first tick: a subscriber already on the graph
+        # (RViz, a probe) has matched homing's publishers by the time the first state is published
+        self._world = WorldPublisher(n)
 
     def _take(self, what: str, r: Received) -> None:
         with self._lock:
@@ -285,10 +288,6 @@ class Ros2Robot:
 
     def publish_world(self, **world: Any) -> None:
         """Publish homing's world model on the robot's graph (:class:`~homing.robot.ros2.world.WorldPublisher`)."""
-        if self._world is None:
-            from homing.robot.ros2.world import WorldPublisher
-
-            self._world = WorldPublisher(self.node)
         self._world.publish(**world)
 
     def close(self) -> None:
