@@ -332,15 +332,18 @@ class NextWallView(HomingBehaviour):
         self.one_lap = bool(one_lap)
         self.visited: list[Pose2] = []
         self.laps = 0
+        self._wall_views: Any = None  # a WallViews: the views worked out again only where the map changed
 
     def update(self) -> Status:
-        from homing.perception.tag_search import next_view, wall_views
+        from homing.perception.tag_search import WallViews, next_view
 
         grid, here = self.read(GRID_KEY), self.read(POSE_KEY)
         if grid is None or here is None:
             self.feedback_message = "no map yet"
             return Status.FAILURE
-        views = wall_views(grid.data, grid.resolution, grid.origin, self.distance, self.spacing)
+        if self._wall_views is None:
+            self._wall_views = WallViews()
+        views = self._wall_views(grid.data, grid.resolution, grid.origin, self.distance, self.spacing)
         goal = next_view(views, here, self.visited, self.spacing / 2)
         if goal is None and views:
             self.visited, self.laps = [], self.laps + 1

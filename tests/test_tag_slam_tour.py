@@ -7,7 +7,7 @@ import math
 import numpy as np
 import py_trees
 from homing.behaviours.tag_slam_service import LANDMARKS_KEY, POSE_KEY, TOUR_GOAL_KEY, NextTagView
-from homing.perception.tag_search import next_view, wall_views
+from homing.perception.tag_search import WallViews, next_view, wall_views
 from homing.robot import Pose2
 from py_trees.common import Access, Status
 
@@ -115,14 +115,8 @@ def test_unknown_space_keeps_views_away_and_visited_views_are_skipped():
     assert next_view(views, here, views) is None
 
 
-def test_wall_views_are_a_greedy_thinning_of_every_candidate_anywhere_on_the_floor():
-    """The thinning keeps the poses the row-major greedy rule keeps, on a floor of many rooms with its origin at
-    negative coordinates (the kept poses are looked up by squares of the spacing): kept poses are pairwise at
-    least the spacing apart, and every candidate of the band lies within the spacing of one kept before it."""
-    from scipy import ndimage
-
-    rng = np.random.default_rng(3)
-    res, origin, spacing = 0.05, (-7.3, -4.1), 2.0
+def _rooms(rng: np.random.Generator) -> np.ndarray:
+    """A 15 × 20 m floor (5 cm cells) of rooms: an outer wall and 12 interior walls, each with a 1 m door."""
     data = np.zeros((300, 400), dtype=np.int8)
     data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = 100
     for _ in range(12):  # interior walls with doors
@@ -134,6 +128,17 @@ def test_wall_views_are_a_greedy_thinning_of_every_candidate_anywhere_on_the_flo
             c = int(rng.integers(20, 380))
             data[:, c] = 100
             data[int(rng.integers(10, 280)):, c][:20] = 0
+    return data
+
+
+def test_wall_views_are_a_greedy_thinning_of_every_candidate_anywhere_on_the_floor():
+    """The thinning keeps the poses the row-major greedy rule keeps, on a floor of many rooms with its origin at
+    negative coordinates (the kept poses are looked up by squares of the spacing): kept poses are pairwise at
+    least the spacing apart, and every candidate of the band lies within the spacing of one kept before it."""
+    from scipy import ndimage
+
+    res, origin, spacing = 0.05, (-7.3, -4.1), 2.0
+    data = _rooms(np.random.default_rng(3))
     views = wall_views(data, res, origin, distance=1.2, spacing=spacing)
     assert len(views) > 20
     xy = np.array([(v.x, v.y) for v in views])
@@ -146,3 +151,47 @@ def test_wall_views_are_a_greedy_thinning_of_every_candidate_anywhere_on_the_flo
     cx, cy = origin[0] + (cols + 0.5) * res, origin[1] + (rows + 0.5) * res
     near = np.hypot(cx[:, None] - xy[None, :, 0], cy[:, None] - xy[None, :, 1]) < spacing
     assert near.any(axis=1).all()
+
+
+def test_wall_views_kept_between_calls_are_the_views_of_the_map_as_it_is() -> None:
+    """The patrol's next wall view is chosen at every goal on a map that changed a little since (floor:1: 60–430 of
+    0.97 M cells): WallViews works the views out again only round what changed, and gives the poses a call from
+    scratch gives, to the bit, after every change: a wall drawn, a door opened, speckle far off, a change at the
+    map's edge, the array changed in place; another size, origin or spacing: worked out anew."""
+    rng = np.random.default_rng(7)
+    res, origin = 0.05, (-7.3, -4.1)
+    data = _rooms(rng)
+    kept = WallViews()
+
+    def same(d: np.ndarray, o: tuple[float, float] = origin, **kw: float) -> list[Pose2]:
+        got = kept(d, res, o, **kw)
+        assert got == wall_views(d.copy(), res, o, **kw)
+        return got
+
+    first = same(data)
+    assert first and same(data) == first  # unchanged: the last poses
+    changes = [(slice(140, 141), slice(60, 200), 100),  # a wall drawn across a room
+               (slice(0, 1), slice(150, 175), 0),  # the outer wall opened at the map's edge
+               (slice(250, 256), slice(300, 304), -1)]  # unknown speckle
+    for rows, cols, value in changes:
+        data = data.copy()
+        data[rows, cols] = value
+        assert same(data) != first
+    for _ in range(60):  # a few cells changed at a time, here and there, as scans do
+        data = data.copy()
+        r, c = rng.integers(0, 298), rng.integers(0, 398)
+        data[r : r + 2, c : c + 2] = rng.choice(np.array([-1, 0, 100], np.int8), (2, 2))
+        last = same(data)
+    data[150:, :200] = -1  # the array the last call had, changed in place
+    assert same(data) != last
+    same(data, (-7.0, -4.1))
+    same(data, spacing=1.5)
+    same(np.pad(data, ((0, 20), (0, 0)), constant_values=-1))  # the grid grew
+    # A pillar in an open hall: views round it as far as the band reaches (1.35 m), a change that far off
+    hall, _, _ = _box(12.0, 12.0)
+    kept = WallViews()
+    same(hall)
+    for r, c in ((120, 120), (120, 121), (121, 120), (93, 120), (92, 150)):
+        hall = hall.copy()
+        hall[r, c] = 100
+        same(hall)
