@@ -23,7 +23,10 @@ goes on with the next one, as explore_lite does. A failure of the robot itself (
 ``no_progress``, ``start_occupied``, ``invalid_path``) blacklists the goal too,
 then ends the leaf with FAILURE and that reason, so a mission's recovery node
 (clear costmap, spin, back up, wait) can act before it starts again; the
-explorer and its blacklist survive the restart.
+explorer and its blacklist survive the restart. Such a goal is given up as
+the navigator's verdict (``no_progress (navigator)``): not tried again
+within the round, where the restart would send the robot straight back to
+fail again (:mod:`homing.mapping.giveups`), but at its end.
 
 "Done" means done (:mod:`homing.mapping.explorer`, :mod:`homing.mapping.reachable`):
 SUCCESS only when the map has no frontier the robot's footprint could reach
@@ -181,7 +184,7 @@ class Explore(_ReportsFailure):
         elif self._nav_goal is not None and nav.status is NavStatus.FAILED:
             reason = failure_reason(nav.feedback.error)
             self.failures.append((now, reason, self._nav_goal))
-            explorer.report_failure(reason)
+            explorer.report_failure(reason, robot=reason not in GOAL_REASONS)
             self._nav_goal = None
             self._next_decision = -math.inf
             if reason not in GOAL_REASONS:

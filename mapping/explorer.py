@@ -79,7 +79,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from homing.mapping.frontier import OCCUPIED_AT
-from homing.mapping.giveups import LOOKED_AT, mapped, reachable_again, settled
+from homing.mapping.giveups import LOOKED_AT, mapped, reachable_again, robot_failed, settled
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.navigable import disc, ways_in
 from homing.mapping.reachable import (
@@ -169,10 +169,13 @@ class Explorer:
         self._last_choice = -math.inf
         self.fields = 0  # distance fields asked for (the costly part of a decision)
 
-    def report_failure(self, reason: str = "nav_failed") -> None:
-        """Navigation failed to reach the goal (``reason``): blacklist it and choose another on the next update."""
+    def report_failure(self, reason: str = "nav_failed", robot: bool = False) -> None:
+        """Navigation failed to reach the goal (``reason``): blacklist it and choose another on the next update.
+        ``robot``: the robot itself failed (the navigator's verdict ends the exploration leaf for the recoveries):
+        the place is given up as such (:func:`homing.mapping.giveups.robot_failed`), to be tried again at the
+        round's end, not within it."""
         if self.goal is not None:
-            self._blacklist(self.goal.x, self.goal.y, reason)
+            self._blacklist(self.goal.x, self.goal.y, robot_failed(reason) if robot else reason)
         self.goal = None
 
     def _blacklist(self, x: float, y: float, reason: str) -> None:

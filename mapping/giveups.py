@@ -9,6 +9,16 @@ round (once per round) as soon as the strategy finds nothing else worth the trip
 (:func:`reachable_again`), rather than only at the round's end. Measured on ``office:1`` seed 0 (bench explore,
 frontier_travel): a south-east room given up at 273 s (no_progress) and 401 s was entered only after the round's
 end at 705 s, the robot visiting crumbs and places seen through a gap in the outer wall meanwhile; t95 740 s.
+
+A place where the *robot itself* failed — the navigator's own verdict (it moved too little, was blocked, stood in
+an obstacle, its path went invalid) ended the exploration leaf for the mission's recoveries — is given up with
+that reason marked as the navigator's (:func:`robot_failed`: ``no_progress (navigator)``). It is tried again at
+the round's end like any other (:meth:`Explorer.forgive`), never within the round: the recovery that follows
+restarts the leaf, and sent straight back to the same goal the robot fails again. Measured on ``office:1``
+(bench persist, seed 1, 5fb012a): unable to leave its dock for 8 minutes, the robot was sent 24 times to the same
+place 10 m away, each time failing the navigator's progress check in 10 s and going through the Error state
+(248 s of Error in the day); the explorer's own progress check (``no_progress``: the travel distance did not
+shrink for ``progress_timeout``) still lets its place be tried again within the round.
 """
 
 from __future__ import annotations
@@ -23,6 +33,13 @@ from homing.map_server import UNKNOWN
 
 LOOKED_AT = "not_cleared"  # the one reason a place is given up after the robot stood at it and looked
 TRANSIENT = ("no_progress", "unreachable", "cut_off", "no_path")  # reasons that say nothing of the place itself
+NAVIGATOR = "(navigator)"  # the mark of a reason that was the navigator's verdict on the robot itself
+
+
+def robot_failed(reason: str) -> str:
+    """The reason a place is given up for when the robot itself failed on the way to it (the navigator's
+    ``reason`` ended the exploration leaf): ``no_progress (navigator)``, never :data:`TRANSIENT` within the round."""
+    return f"{reason} {NAVIGATOR}"
 
 
 def settled(reason: str) -> bool:

@@ -1,17 +1,21 @@
-"""The explorer's give-ups: a detour is no lack of progress, and a place given up for a transient reason is tried
-again within the round once the strategy finds nothing else (:mod:`homing.mapping.giveups`)."""
+"""The explorer's give-ups: a detour is no lack of progress, a place given up for a transient reason is tried
+again within the round once the strategy finds nothing else, and a place where the robot itself failed (the
+navigator's verdict ended the leaf) only at the round's end (:mod:`homing.mapping.giveups`)."""
 
 from __future__ import annotations
 
 import numpy as np
+from homing.behaviours.explore import Explore
 from homing.mapping.explorer import Explorer
-from homing.mapping.giveups import reachable_again
+from homing.mapping.giveups import reachable_again, robot_failed
 from homing.mapping.strategies import make_strategy
 from homing.navigation.costmap import Costmap
+from homing.navigation.navigator import NoProgress
 from homing.navigation.planner import distance_map
 from homing.robot import Pose2
+from py_trees.common import Status
 
-from tests.test_explore import _two_openings
+from tests.test_explore import _board, _FailingNavigator, _Robot, _tick, _two_openings
 
 
 def _explorer_and_field() -> tuple[Explorer, object, Pose2, np.ndarray]:
@@ -97,3 +101,52 @@ def test_only_transient_reasons_the_costmap_reaches_are_tried_again() -> None:
     assert reachable_again(places, reasons, [], field, grid, 0.5, nearer_than=near - 1.0) == set()  # a nearer site
     unreachable = np.full_like(field, np.inf)
     assert reachable_again(places, reasons, [], unreachable, grid, 0.5) == set()
+
+
+def test_a_place_the_robot_itself_failed_at_is_not_tried_again_within_the_round() -> None:
+    # The navigator's own no_progress (the robot moved too little) ends the leaf for the recoveries: the restart
+    # must not send the robot straight back. The explorer's own no_progress (the previous tests) still is.
+    ex, grid, robot, field = _explorer_and_field()
+    step, failed = ex.update(grid, robot, field, 0.0), []
+    for t in range(1, 60):
+        if step.done:
+            break
+        assert step.goal is not None
+        if step.goal.x < 2.0:  # the west opening: the robot fails on the way, a recovery restarts the leaf
+            assert all(np.hypot(step.goal.x - x, step.goal.y - y) > ex.blacklist_radius for x, y in failed), \
+                "a place the robot failed at was tried again within the round"
+            failed.append((step.goal.x, step.goal.y))
+            ex.report_failure("no_progress", robot=True)
+            ex.new_round(grid, robot)
+        else:  # the east: looked at
+            ex.report_failure("not_cleared")
+        step = ex.update(grid, robot, field, float(t))
+    assert step.done and step.gave_up > 0 and failed
+    assert robot_failed("no_progress") in ex.blacklist_reasons
+    ex.new_round(grid, robot, incomplete=True)  # the round's end: tried again then
+    assert ex.update(grid, robot, field, 60.0).goal.x < 2.0
+    places = [(2.0, 1.0), (2.0, 1.0)]
+    assert reachable_again(places, [robot_failed("no_progress"), "no_progress"], [], field, grid, 0.5) == {1}
+
+
+def test_a_robot_that_cannot_move_fails_each_place_once_a_round_not_for_ever() -> None:
+    # office:1 seed 1 (bench persist, 5fb012a): unable to leave its dock, the robot was sent 24 times in 8 minutes
+    # to the same place, failing the navigator's progress check each time (an Error state and recoveries each).
+    # Every start of the leaf after a failure is a recovery's: each place fails once, then the round ends incomplete.
+    grid = _two_openings()
+    nav = _FailingNavigator(grid, NoProgress("moved less than 0.25 m in 10 s"))
+    _board(grid, nav, Pose2(1.0, 1.5, 0.0))
+    bot = _Robot()
+    leaf = Explore("Explore", strategy="nearest")
+    leaf.setup(robot=bot, seed=0)
+    ends = []
+    for _ in range(200):
+        status = _tick(leaf, bot)
+        if status == Status.FAILURE:
+            ends.append(leaf.failure_reason)
+            if leaf.failure_reason == "incomplete":
+                break
+    assert ends[-1:] == ["incomplete"], f"{len(ends)} failures: {ends[:3]}…"
+    failed = [(g.x, g.y) for g in nav.goals]
+    assert all(min(np.hypot(x - px, y - py) for px, py in failed[:i]) > leaf.explorer.blacklist_radius
+               for i, (x, y) in enumerate(failed) if i), "the robot was sent back to a place it failed at"
