@@ -35,7 +35,7 @@ T_OCC = 0.40  # log-odds above which a cell reads OCCUPIED
 T_FREE = -0.20  # log-odds below which a cell reads FREE
 GROW_CHUNK = 4.0  # [m] margin added on each side that needs to grow
 NO_RETURN_NEIGHBOURS = 2  # rays each side whose returns bound how far a no-return ray clears
-WALL_MARGIN = 0.1  # [m] a no-return ray stops clearing this short of the first wall the map holds on its way
+MIN_RETURN_SHARE = 0.5  # a scan with fewer returns than this is a dropout: its no-return rays clear nothing
 CHANGES_KEPT = 16  # changes whose extent is remembered (OccupancyGrid.changed_since)
 NOTHING = (math.inf, math.inf, -math.inf, -math.inf)  # the extent of a change that changed no cell's value
 
@@ -203,12 +203,7 @@ class OccupancyGrid:
         Rays with a return mark their end cell occupied and the cells before
         it free. A ray with no return (``inf``) clears up to the nearest
         return of its neighbours (or ``range_max`` if they have none either):
-        an isolated dropout pointing at a wall must not clear the wall. Nor
-        does it clear past a wall the map already holds on its way (less
-        ``WALL_MARGIN``): a no-return ray is open space beyond the lidar's
-        reach (the middle of a hall, where most rays return nothing) unless
-        the map says a wall is within reach, and then it is a lost return
-        (a lidar dropout, a grazing ray): the wall stays.
+        an isolated dropout pointing at a wall must not clear the wall.
         """
         sensor = pose.compose(scan.laser_pose)
         ranges = np.asarray(scan.ranges, dtype=float)
@@ -216,16 +211,13 @@ class OccupancyGrid:
         wraps = abs(abs(scan.angle_increment) * len(ranges) - 2 * math.pi) < 2 * abs(scan.angle_increment)
         clear = _clear_lengths(ranges, hit, scan.range_max, wraps)
         angles = scan.angles + sensor.theta
-        self.integrate_rays(np.array([sensor.x, sensor.y]), angles, clear, hit, stop_at_walls=~hit)
+        self.integrate_rays(np.array([sensor.x, sensor.y]), angles, clear, hit)
 
-    def integrate_rays(self, origin: np.ndarray, angles: np.ndarray, lengths: np.ndarray, hit: np.ndarray,
-                       stop_at_walls: np.ndarray | None = None) -> None:
+    def integrate_rays(self, origin: np.ndarray, angles: np.ndarray, lengths: np.ndarray, hit: np.ndarray) -> None:
         """Trace (N,) rays from ``origin`` (2,) [m, map] at ``angles`` [rad, map] of ``lengths`` [m].
 
         ``hit`` (N,) bool says which rays end on an obstacle (their end cell
-        is marked occupied); the others only clear. ``stop_at_walls`` (N,)
-        bool: those rays clear only up to ``WALL_MARGIN`` short of the first
-        cell on their way that reads occupied before this scan.
+        is marked occupied); the others only clear.
         """
         ox, oy = float(origin[0]), float(origin[1])
         ends_x = ox + lengths * np.cos(angles)
@@ -257,9 +249,6 @@ class OccupancyGrid:
             v -= corner
             v /= res
             cells.append(np.floor(v, out=v).astype(np.int64))
-        if stop_at_walls is not None and stop_at_walls.any() and ray.size:
-            keep = self._short_of_walls(cells[1], cells[0], ray, counts, stop_at_walls)
-            cells, ray = [cells[0][keep], cells[1][keep]], ray[keep]
         free_idx = _flat_cells(cells[1], cells[0], h, w)
         # A ray's samples are half a cell apart, so most fall in the cell of the one before: those repeats
         # change nothing (a cell is updated once per scan) and are dropped before the rest of the work.
@@ -284,26 +273,6 @@ class OccupancyGrid:
                          max(ox, float(ends_x.max())), max(oy, float(ends_y.max()))))
         else:
             self._touch(NOTHING)
-
-    def _short_of_walls(self, rows: np.ndarray, cols: np.ndarray, ray: np.ndarray, counts: np.ndarray,
-                        stop: np.ndarray) -> np.ndarray:
-        """(S,) bool: the samples (``rows``, ``cols``: cells; ``ray``: their ray, rays' samples contiguous and in
-        order, ``counts`` per ray) to keep: all of the rays not in ``stop``; of those in it, the samples before
-        the first that lies within ``WALL_MARGIN`` of a cell reading occupied."""
-        h, w = self.shape
-        inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-        wall = np.zeros(rows.size, dtype=bool)
-        sel = inside & stop[ray]
-        wall[sel] = self.logodds[rows[sel], cols[sel]] > T_OCC
-        if not wall.any():
-            return np.ones(rows.size, dtype=bool)
-        m = int(math.ceil(WALL_MARGIN / (0.5 * self.resolution)))  # samples are half a cell apart
-        seen = np.cumsum(wall)  # walls among the samples up to each one
-        first = np.cumsum(counts) - counts  # each ray's first sample
-        last = first + counts - 1
-        before = seen[first] - wall[first]  # walls before each ray's first sample (other rays')
-        ahead = np.minimum(np.arange(rows.size) + m, last[ray])  # the last sample within the margin ahead
-        return seen[ahead] - before[ray] == 0
 
     def clear(self) -> None:
         """Forget everything (all cells unknown)."""
@@ -359,7 +328,8 @@ def _clear_lengths(ranges: np.ndarray, hit: np.ndarray, range_max: float, wraps:
         neighbour_min = np.minimum(neighbour_min, padded[k_max - k: k_max - k + n])
         neighbour_min = np.minimum(neighbour_min, padded[k_max + k: k_max + k + n])
     # A no-return ray among returns clears to just short of the nearest neighbouring return. One among other
-    # no-return rays clears the sensor's reach (open space beyond range: the middle of a hall), up to the walls
-    # the map already holds (OccupancyGrid.integrate): a lidar that dropped out does not erase the room.
-    bounded = np.where(np.isfinite(neighbour_min), 0.9 * neighbour_min, range_max)
+    # no-return rays clears the sensor's reach, but only in a scan that mostly returned (open space beyond
+    # range): in a scan that mostly did not, the lidar dropped out, and clearing its reach would erase the room.
+    far = range_max if hit.mean() >= MIN_RETURN_SHARE else 0.0
+    bounded = np.where(np.isfinite(neighbour_min), 0.9 * neighbour_min, far)
     return np.where(hit, ranges, np.minimum(bounded, range_max))

@@ -99,31 +99,6 @@ def test_a_blanked_scan_clears_nothing_while_a_scan_of_open_space_still_does():
     assert grid.value_at(0.0, 4.0) == FREE
 
 
-def test_in_the_middle_of_a_hall_rays_without_return_clear_the_lidars_reach_but_stop_at_known_walls():
-    # A hall: one wall 2 m ahead (x = 2) within reach, everything else beyond the lidar's 6 m; a tenth of the
-    # rays return (the rule before took such a scan for a dropout and cleared nothing but the returned rays).
-    grid = OccupancyGrid(0.05, (-8.0, -8.0), (320, 320))
-    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
-    ranges = np.where(np.abs(angles) < 0.3, 2.0 / np.cos(angles), np.inf).astype(np.float32)
-    grid.integrate(Scan(0.0, -math.pi, 2 * math.pi / 360, ranges, 0.15, 6.0), Pose2())
-    assert np.isfinite(ranges).mean() < 0.2
-    # open space 4-5 m away (off the wall's side): rays 1° apart leave a cell between them here and there
-    rows, cols = np.indices(grid.shape)
-    x, y = grid.cell_to_world(rows, cols)
-    ring = (np.hypot(x, y) > 4.0) & (np.hypot(x, y) < 5.0) & (x < 1.5)
-    assert (grid.data[ring] == FREE).mean() > 0.6
-    assert grid.value_at(2.02, 0.0) == OCCUPIED
-    walls = grid.data == OCCUPIED
-    # The wall stops rays without return that cross it later (a dropout, a grazing ray), but not the space
-    # before it: the cells behind the wall stay unknown and the wall stays.
-    blank = Scan(0.1, -math.pi, 2 * math.pi / 360, np.full(360, np.inf, np.float32), 0.15, 6.0)
-    for _ in range(20):
-        grid.integrate(blank, Pose2())
-    assert (grid.data[walls] == OCCUPIED).all() and walls.sum() > 20
-    assert grid.value_at(3.0, 0.0) == UNKNOWN and grid.value_at(4.0, 0.5) == UNKNOWN
-    assert grid.value_at(1.5, 0.0) == FREE
-
-
 def _classified(grid: OccupancyGrid) -> np.ndarray:
     out = np.full(grid.shape, UNKNOWN, np.int8)
     out[grid.logodds > 0.40] = OCCUPIED
