@@ -92,6 +92,19 @@ def _board(grid: OccupancyGrid, nav: Any, pose: Pose2) -> py_trees.blackboard.Cl
     return bb
 
 
+def _failing_leaf(error: Exception, strategy: str = "nearest",
+                  seed: int = 0) -> tuple[Explore, _Robot, Any, py_trees.blackboard.Client]:
+    """An Explore leaf at (1.0, 1.5) in :func:`_two_openings` whose navigator fails every goal with ``error``:
+    (leaf, robot, navigator, blackboard)."""
+    grid = _two_openings()
+    nav = _FailingNavigator(grid, error)
+    bb = _board(grid, nav, Pose2(1.0, 1.5, 0.0))
+    robot = _Robot()
+    leaf = Explore("Explore", strategy=strategy)
+    leaf.setup(robot=robot, seed=seed)
+    return leaf, robot, nav, bb
+
+
 def _tick(leaf: Explore, robot: _Robot, dt: float = 0.1) -> Status:
     leaf.tick_once()
     robot.clock.t += dt
@@ -123,12 +136,7 @@ def test_explore_blacklists_a_goal_the_navigator_fails_and_moves_on(strategy: st
 
 
 def test_explore_blacklists_a_goal_the_navigator_bumped_on_and_goes_on() -> None:
-    grid = _two_openings()
-    nav = _FailingNavigator(grid, TooManyBumps("a bumper fired 3 times on the way"))
-    _board(grid, nav, Pose2(1.0, 1.5, 0.0))
-    robot = _Robot()
-    leaf = Explore("Explore", strategy="nearest")
-    leaf.setup(robot=robot, seed=0)
+    leaf, robot, nav, _ = _failing_leaf(TooManyBumps("a bumper fired 3 times on the way"))
     statuses = [_tick(leaf, robot) for _ in range(2)]
     # TooManyBumps is the goal's fault (something low near it the lidar misses): blacklist it, keep exploring.
     assert statuses == [Status.RUNNING, Status.RUNNING], leaf.feedback_message
@@ -138,12 +146,7 @@ def test_explore_blacklists_a_goal_the_navigator_bumped_on_and_goes_on() -> None
 
 
 def test_explore_fails_with_the_reason_when_the_robot_cannot_progress() -> None:
-    grid = _two_openings()
-    nav = _FailingNavigator(grid, NoProgress("stuck"))
-    bb = _board(grid, nav, Pose2(1.0, 1.5, 0.0))
-    robot = _Robot()
-    leaf = Explore("Explore", strategy="nearest")
-    leaf.setup(robot=robot, seed=0)
+    leaf, robot, nav, bb = _failing_leaf(NoProgress("stuck"))
     statuses = [_tick(leaf, robot) for _ in range(2)]
     assert statuses == [Status.RUNNING, Status.FAILURE] and leaf.failure_reason == "no_progress"
     assert len(leaf.explorer.blacklist) == 1 and bb.get(GOAL_KEY) is None
@@ -153,12 +156,7 @@ def test_explore_fails_with_the_reason_when_the_robot_cannot_progress() -> None:
 
 
 def test_explore_that_gave_up_reachable_frontiers_ends_incomplete_and_tries_them_again_next_start() -> None:
-    grid = _two_openings()
-    nav = _FailingNavigator(grid, NoPathFound("no free path"))
-    bb = _board(grid, nav, Pose2(1.0, 1.5, 0.0))
-    robot = _Robot()
-    leaf = Explore("Explore", strategy="nearest")
-    leaf.setup(robot=robot, seed=0)
+    leaf, robot, nav, bb = _failing_leaf(NoPathFound("no free path"))
     reasons = []
     for _ in range(200):  # started again after each failure, as a recovery node does
         if _tick(leaf, robot) == Status.FAILURE:

@@ -5,7 +5,6 @@ navigator's verdict ended the leaf) only at the round's end (:mod:`homing.mappin
 from __future__ import annotations
 
 import numpy as np
-from homing.behaviours.explore import Explore
 from homing.mapping.explorer import Explorer
 from homing.mapping.giveups import reachable_again, robot_failed
 from homing.mapping.strategies import make_strategy
@@ -15,7 +14,7 @@ from homing.navigation.planner import distance_map
 from homing.robot import Pose2
 from py_trees.common import Status
 
-from tests.test_explore import _board, _FailingNavigator, _Robot, _tick, _two_openings
+from tests.test_explore import _failing_leaf, _tick, _two_openings
 
 
 def _explorer_and_field() -> tuple[Explorer, object, Pose2, np.ndarray]:
@@ -133,12 +132,7 @@ def test_a_robot_that_cannot_move_fails_each_place_once_a_round_not_for_ever() -
     # office:1 seed 1 (bench persist, 5fb012a): unable to leave its dock, the robot was sent 24 times in 8 minutes
     # to the same place, failing the navigator's progress check each time (an Error state and recoveries each).
     # Every start of the leaf after a failure is a recovery's: each place fails once, then the round ends incomplete.
-    grid = _two_openings()
-    nav = _FailingNavigator(grid, NoProgress("moved less than 0.25 m in 10 s"))
-    _board(grid, nav, Pose2(1.0, 1.5, 0.0))
-    bot = _Robot()
-    leaf = Explore("Explore", strategy="nearest")
-    leaf.setup(robot=bot, seed=0)
+    leaf, bot, nav, _ = _failing_leaf(NoProgress("moved less than 0.25 m in 10 s"))
     ends = []
     for _ in range(200):
         status = _tick(leaf, bot)
