@@ -166,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
     print_table(
         f"Covering routes: the lidar ({LIDAR_RANGE:g} m) sees {TARGET:.0%} of the navigable area; "
         "time at the navigation speed limit; 'behind' is the free area only passages narrower than the robot "
-        "lead to (the widest of them)",
+        "(or than a map may draw them) lead to (the widest of them)",
         ["world", "kind", "area m²", "behind m²", "viewpoints", "route m", "time s"],
         [[world_label(b.world), plan_kind(world_label(b.world)), b.area,
           f"{b.blocked_area:.1f} ({b.blocked_width:.2f} m)" if b.blocked_area else "0", b.viewpoints, b.length,

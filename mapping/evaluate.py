@@ -15,8 +15,16 @@ from typing import Any
 
 import cv2
 import numpy as np
+from homing.mapping.blocks import block_any
 from homing.mapping.grid import OccupancyGrid
-from homing.mapping.navigable import Navigable, disc, inscribed_radius, navigable
+from homing.mapping.navigable import (
+    MAP_MARGIN,
+    MAP_RESOLUTION,
+    Navigable,
+    disc,
+    inscribed_radius,
+    navigable,
+)
 from homing.robot import Pose2
 
 from homing.map_server import FREE, UNKNOWN, MapData
@@ -147,12 +155,24 @@ _NAVIGABLE: dict[str, Any] = {}  # navigable_truth's last answer: its key, the t
 
 def navigable_truth(truth: MapData, start_xy: tuple[float, float]) -> Navigable:
     """The navigable area of the true map from ``start_xy`` [m, truth frame] (:mod:`homing.mapping.navigable`:
-    the costmap's rule), and the places behind passages narrower than the robot. The last answer is kept (a
-    run asks every few seconds)."""
+    the costmap's rule on the plan as the robot's map can draw it, ``MAP_MARGIN``), and the places behind
+    passages narrower than the robot. A plan coarser than the robot's grid is worked on at the grid's cells
+    (a 0.1 m plan's 0.5 and 0.6 m passages are both 5 cells wide from their middle: only the robot's cells
+    tell them apart) and its mask and region given back on the plan's cells. The last answer is kept (a run asks every few seconds)."""
     key = (truth.grid.shape, truth.resolution, tuple(truth.origin[:2]), tuple(start_xy))
     if _NAVIGABLE.get("key") != key or _NAVIGABLE.get("truth") is not truth.grid:
-        _NAVIGABLE.update(key=key, truth=truth.grid, value=navigable(
-            truth.grid == FREE, truth.resolution, (truth.origin[0], truth.origin[1]), start_xy))
+        free, origin = truth.grid == FREE, (truth.origin[0], truth.origin[1])
+        k = int(round(truth.resolution / MAP_RESOLUTION))
+        if k < 2 or abs(k * MAP_RESOLUTION - truth.resolution) > 1e-9:  # as fine as the grid, or no multiple
+            value = navigable(free, truth.resolution, origin, start_xy, margin=MAP_MARGIN)
+        else:
+            fine = navigable(np.repeat(np.repeat(free, k, axis=0), k, axis=1), MAP_RESOLUTION, origin, start_xy,
+                             margin=MAP_MARGIN)
+            h, w = free.shape  # the mask: half a cell's parts or more (its centre, near enough); the region: any
+            mask = (fine.mask.reshape(h, k, w, k).mean(axis=(1, 3)) >= 0.5) & free
+            value = Navigable(mask, block_any(fine.region, k) & free, float(mask.sum()) * truth.resolution**2,
+                              fine.blocked)
+        _NAVIGABLE.update(key=key, truth=truth.grid, value=value)
     return _NAVIGABLE["value"]
 
 

@@ -27,6 +27,24 @@ rule gives the **navigable area**:
    every wall still join the region to the place, reported as a wall-to-wall
    width ``2·t`` less half a cell (within half a cell of the drawn width).
 
+On a true plan the rule is applied to the plan **as the robot's map can
+draw it**: ``navigable(..., margin=MAP_MARGIN)`` widens the footprint by the
+map's drawing error, one cell of the robot's 5 cm grid each side, on the
+plan resampled to that grid (:func:`homing.mapping.evaluate.navigable_truth`).
+A lidar map puts a wall face a cell into the room where the face lies on a
+cell boundary (half the hits fall on the free side, and a hit outweighs a
+pass) or where the poses the face was seen from were 3 cm off: measured on
+``atrium:1`` seed 1 (bench explore, frontier_travel), a 0.50 m passage (10
+cells, the rule wants 9) drawn 8 cells wide, one jamb a cell in at the
+log-odds clamp. A passage within a cell each side of the rule may or may not
+be passable on the robot's map, so the places behind it are no part of the
+navigable area (no run is scored on them, nor called a false done for
+leaving them) and are reported apart, ``marginal``, with their widths; a
+robot that maps the passage wide enough still goes through and maps them.
+What the margin alone leaves out in pieces smaller than ``MIN_MARGINAL``
+(the least unseen area bench explore calls a place), an alcove or the
+corner of a desk, stays navigable.
+
 Grids are (H, W) with row 0 at the lowest y; distances between cell centres.
 """
 
@@ -41,6 +59,9 @@ from homing.mapping.distance import distance_cells
 from homing.robot.turtlebot import FOOTPRINT_RADIUS
 
 MIN_BLOCKED = 0.25  # [m²] free space left out in smaller pieces is a corner or a crack, not a place
+MAP_RESOLUTION = 0.05  # [m] the robot's grid (homing.mapping.grid)
+MAP_MARGIN = MAP_RESOLUTION  # [m] how far into a passage the robot's map may draw each wall face (module doc)
+MIN_MARGINAL = 1.0  # [m²] what the margin alone leaves out in smaller pieces (an alcove) stays navigable
 
 
 def inscribed_radius(resolution: float, robot_radius: float = FOOTPRINT_RADIUS) -> float:
@@ -67,12 +88,14 @@ def disc(radius_cells: float) -> np.ndarray:
 @dataclass(frozen=True)
 class Blocked:
     """Free space joined to the start only through passages narrower than the robot: where (its centroid, [m],
-    the map's frame), how much (``area`` [m²]) and the widest way in (``width`` [m], wall to wall)."""
+    the map's frame), how much (``area`` [m²]) and the widest way in (``width`` [m], wall to wall).
+    ``marginal``: the footprint fits through, but not with the map's margin (module doc)."""
 
     x: float
     y: float
     area: float
     width: float
+    marginal: bool = False
 
 
 @dataclass(frozen=True)
@@ -93,27 +116,38 @@ class Navigable:
     def summary(self) -> str:
         """One line: the navigable area and what the robot cannot reach, with the passages' widths."""
         text = f"navigable area {self.area:.1f} m²"
-        if self.blocked:
-            text += "; behind passages narrower than the robot: " + ", ".join(
-                f"{b.area:.1f} m² at ({b.x:.1f}, {b.y:.1f}) through {b.width:.2f} m" for b in self.blocked)
+        for marginal, what in ((False, "narrower than the robot"),
+                               (True, "a map may draw narrower than the robot (within a cell a side)")):
+            places = [b for b in self.blocked if b.marginal is marginal]
+            if places:
+                text += f"; behind passages {what}: " + ", ".join(
+                    f"{b.area:.1f} m² at ({b.x:.1f}, {b.y:.1f}) through {b.width:.2f} m" for b in places)
         return text
 
 
 def navigable(free: np.ndarray, resolution: float, origin: tuple[float, float], start_xy: tuple[float, float],
-              robot_radius: float = FOOTPRINT_RADIUS) -> Navigable:
+              robot_radius: float = FOOTPRINT_RADIUS, margin: float = 0.0) -> Navigable:
     """The navigable area of a floor plan (module doc): ``free`` (H, W) bool, ``resolution`` [m], ``origin``
-    (x, y) [m] of cell (0, 0)'s corner, the robot's start ``start_xy`` [m]."""
+    (x, y) [m] of cell (0, 0)'s corner, the robot's start ``start_xy`` [m]; ``margin`` [m]: the map's drawing
+    error, added to the footprint's radius (module doc)."""
     free = np.asarray(free, bool)
     h, w = free.shape
     sr = int(np.clip(math.floor((start_xy[1] - origin[1]) / resolution), 0, h - 1))
     sc = int(np.clip(math.floor((start_xy[0] - origin[0]) / resolution), 0, w - 1))
     empty = np.zeros_like(free)
-    fits = free & centre_fits(~free, resolution, robot_radius)
+    fits = free & centre_fits(~free, resolution, robot_radius + margin)
     if not fits.any():
         return Navigable(empty, empty, 0.0, ())
     region = _component_at(fits, (sr, sc))
-    r_cells = inscribed_radius(resolution, robot_radius) / resolution
+    r_cells = inscribed_radius(resolution, robot_radius + margin) / resolution
+    bare = inscribed_radius(resolution, robot_radius) / resolution  # [cells] the rule without the margin
     mask = cv2.dilate(region.astype(np.uint8), disc(r_cells)).astype(bool) & free
+    if margin > 0:  # corners and alcoves the margin alone leaves out, each smaller than a place, stay in
+        bare_fits = free & centre_fits(~free, resolution, robot_radius)
+        swept = cv2.dilate(_component_at(bare_fits, (sr, sc)).astype(np.uint8), disc(bare)).astype(bool) & free
+        n, labels, stats, _ = cv2.connectedComponentsWithStats((swept & ~mask).astype(np.uint8), connectivity=8)
+        small = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] * resolution**2 < MIN_MARGINAL)
+        mask |= np.isin(labels, small[small > 0])
     connected = _component_at(free, (sr, sc))
     left_out = (connected & ~mask).astype(np.uint8)
     n, labels, stats, centroids = cv2.connectedComponentsWithStats(left_out, connectivity=8)
@@ -126,7 +160,7 @@ def navigable(free: np.ndarray, resolution: float, origin: tuple[float, float], 
         t = _bottleneck(clearance, region, labels == k, r_cells)
         cx, cy = centroids[k]
         blocked.append(Blocked(origin[0] + (cx + 0.5) * resolution, origin[1] + (cy + 0.5) * resolution, area,
-                               max(0.0, (2.0 * t - 0.5) * resolution)))
+                               max(0.0, (2.0 * t - 0.5) * resolution), marginal=bool(t > bare)))
     blocked.sort(key=lambda b: -b.area)
     return Navigable(mask, region, float(mask.sum()) * resolution**2, tuple(blocked))
 
