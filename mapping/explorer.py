@@ -246,14 +246,23 @@ class Explorer:
     def _ways_in(self, grid: OccupancyGrid, pose: Pose2, places: list[tuple[float, float]],
                  narrow_widths: bool = True) -> list[tuple[float, bool]]:
         """The way in to each place (x, y) [m] (the cells within ``blacklist_radius``) from ``pose`` on ``grid``,
-        walls alone blocking: its width [m] and whether the robot fits (:func:`homing.mapping.navigable.ways_in`)."""
+        walls alone blocking: its width [m] and whether the robot fits (:func:`homing.mapping.navigable.ways_in`;
+        on the robot's trail the footprint alone must fit, as in the map check: a way back through a door the map
+        redrew a cell narrower once the robot was through is no way narrower than the robot)."""
         res = grid.resolution
         rows, cols = np.ogrid[:grid.shape[0], :grid.shape[1]]
         masks = []
         for x, y in places:
             pr, pc = grid.world_to_cell(x, y)
             masks.append((rows - int(pr)) ** 2 + (cols - int(pc)) ** 2 <= (self.blacklist_radius / res) ** 2)
-        return ways_in(grid.data < OCCUPIED_AT, res, _cell_of(grid, pose), masks, self.robot_radius, narrow_widths)
+        start = _cell_of(grid, pose)
+        out = ways_in(grid.data < OCCUPIED_AT, res, start, masks, self.robot_radius, narrow_widths)
+        trail = self._trail(grid)
+        if trail is None or all(fits for _, fits in out):
+            return out
+        g = grid.data
+        region = robot_region((g < OCCUPIED_AT) & clear_of_walls(g, res, self.robot_radius, trail), start, res)
+        return [(width, fits or bool(region[mask].any())) for (width, fits), mask in zip(out, masks, strict=True)]
 
     def _measure_narrow(self, grid: OccupancyGrid, pose: Pose2, report: FrontierReport) -> None:
         """The width [m] of the way in to each of ``report``'s narrow frontiers through known free space (where

@@ -3,18 +3,22 @@ narrower once the robot was through still lets it plan back and explore beyond â
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.reachable import frontier_report
 from homing.navigation.costmap import INSCRIBED, MAX_NON_OBSTACLE, Costmap
 from homing.navigation.dwb import DWB
+from homing.navigation.navigator import Navigator, NavStatus
 from homing.navigation.planner import NoPathFound, make_planner
 from homing.navigation.trail import Trail
-from homing.robot import Pose2, Twist2
-from homing.robot.turtlebot import FOOTPRINT_RADIUS
+from homing.robot import BatteryState, Bumpers, DockIR, Observation, Odometry, Pose2, Twist2
+from homing.robot.turtlebot import BASE_RADIUS, FOOTPRINT_RADIUS
 
 from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData
+from tests.navworld import point_rect_distance, rasterise, scan_of, unicycle
 
 RES = 0.05  # [m/cell]
 DOOR_ROW = 46  # the passage's first free row (y 2.30 m)
@@ -184,3 +188,75 @@ def test_a_trail_is_bounded_and_joins_only_steps_the_robot_could_drive() -> None
     m = trail.mask((-0.5, -0.5), RES, (20, 60))
     assert m.sum() == 6 and m[10, 10] and m[10, 14] and m[10, 50] and not m[10, 15]
 
+
+
+# A 6 m Ã— 4 m floor: a room (x < 3 m) and a hall (x > 3.25 m) through a true 0.5 m door (y 1.76..2.26 m) in a
+# 0.25 m wall, as the floor generator's; the map draws the door 9 cells wide on the way in (y 1.80..2.25 m), 8 once
+# inside (y 1.80..2.20 m). (Jambs off the cell boundaries: a scan's hits on a face on a boundary fall either side,
+# and draw the door narrower still.)
+WORLD = np.array([
+    (0.0, 0.0, 6.0, 0.1), (0.0, 3.9, 6.0, 4.0), (0.0, 0.0, 0.1, 4.0), (5.9, 0.0, 6.0, 4.0),
+    (3.0, 0.0, 3.25, 1.76), (3.0, 2.26, 3.25, 4.0),
+])
+
+
+def _drawn(lower_jamb: float, upper_jamb: float) -> MapData:
+    walls = WORLD.copy()
+    walls[4, 3], walls[5, 1] = lower_jamb, upper_jamb
+    return MapData(rasterise(walls, (6.0, 4.0), RES), RES, (0.0, 0.0, 0.0))
+
+
+def _go(nav: Navigator, grid: MapData, start: Pose2, goal: Pose2, t0: float = 0.0,
+        seconds: float = 40.0) -> tuple[NavStatus, Pose2, float, float]:
+    """Drive the navigator (exact odometry, map = odom, a scan of the true walls every tick) from time ``t0`` [s]
+    to ``goal``: its status, the pose and the time it ended at, and the least clearance [m] of the robot's centre to
+    a true wall on the way."""
+    nav.set_goal(goal, yaw_tolerance=math.inf)
+    pose, twist, least, t = start, Twist2(), math.inf, t0
+    for _ in range(int(seconds / 0.1)):
+        obs = Observation(stamp=t, odom=Odometry(t, pose, twist), scan=scan_of(pose, WORLD, stamp=t), image=None,
+                          bumpers=Bumpers(), dock_ir=DockIR(), battery=BatteryState(16.0, 90.0))
+        status, cmd, _ = nav.step(obs, grid, pose, Pose2())
+        if status is not NavStatus.RUNNING:
+            return status, pose, t, least
+        twist = cmd
+        pose = unicycle(pose, cmd.v, cmd.omega, 0.1)
+        least = min(least, float(point_rect_distance(np.array([pose.x, pose.y]), WORLD).min()))
+        t += 0.1
+    return NavStatus.RUNNING, pose, t, least
+
+
+def test_the_navigator_drives_back_out_through_the_door_the_map_redrew_narrower() -> None:
+    hall, room = Pose2(4.6, 2.0, math.pi), Pose2(1.2, 2.0, 0.0)
+    wide, narrow = _drawn(1.80, 2.25), _drawn(1.80, 2.20)  # 9 cells, then 8 (the jambs a cell in)
+    nav = Navigator()
+    status, inside, t, least = _go(nav, wide, hall, room)
+    assert status is NavStatus.SUCCEEDED and least > BASE_RADIUS
+    status, outside, _, least = _go(nav, narrow, inside, hall, t)
+    assert status is NavStatus.SUCCEEDED, nav.feedback.message
+    assert outside.x > 3.25 + FOOTPRINT_RADIUS and least > BASE_RADIUS  # out, without touching a jamb
+    # Without the trail (a robot put down in the room), the same map keeps it in.
+    fresh = Navigator()
+    status, _, _, _ = _go(fresh, narrow, inside, hall)
+    assert status is NavStatus.FAILED and isinstance(fresh.feedback.error, NoPathFound)
+
+
+def test_a_place_given_up_behind_the_passage_is_measured_with_the_trail_as_one_the_robot_fits() -> None:
+    # Given up on every retry round, a place beyond the passage is measured on the map from inside the room: without
+    # the trail, the way out is narrower than the robot (given up for good); with it, the robot fits (deferred).
+    from homing.mapping.explorer import RETRY_ROUNDS, Explorer
+    from homing.mapping.strategies import make_strategy
+
+    g = _floor(8)
+    grid = _grid(g)
+    cm = _costmap(g)
+    _drive(cm, OUTSIDE, INSIDE)
+    reasons = []
+    for trail in (None, cm.trail.mask(grid.origin, grid.resolution, grid.shape)):
+        ex = Explorer(make_strategy("nearest"), trail=None if trail is None else lambda _, t=trail: t)
+        ex.blacklist, ex.blacklist_reasons = [(OUTSIDE.x, OUTSIDE.y)], ["no_path"]
+        ex.rounds = [(OUTSIDE.x, OUTSIDE.y, RETRY_ROUNDS)]
+        ex.forgive(grid, INSIDE)
+        reasons.append(ex.blacklist_reasons[0])
+    assert reasons[0].endswith("narrower than the robot")
+    assert "the robot fits the way in" in reasons[1]
