@@ -4,11 +4,16 @@ narrower once the robot was through still lets it plan back and explore beyond â
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
+import py_trees
 import pytest
+from homing.behaviours.explore import NoFrontierLeft
+from homing.mapping.explorer import RETRY_ROUNDS, Explorer
 from homing.mapping.grid import OccupancyGrid
 from homing.mapping.reachable import frontier_report
+from homing.mapping.strategies import make_strategy
 from homing.navigation.costmap import INSCRIBED, MAX_NON_OBSTACLE, Costmap
 from homing.navigation.dwb import DWB
 from homing.navigation.navigator import Navigator, NavStatus
@@ -16,6 +21,7 @@ from homing.navigation.planner import NoPathFound, make_planner
 from homing.navigation.trail import Trail
 from homing.robot import BatteryState, Bumpers, DockIR, Observation, Odometry, Pose2, Twist2
 from homing.robot.turtlebot import BASE_RADIUS, FOOTPRINT_RADIUS
+from py_trees.common import Access, Status
 
 from homing.map_server import FREE, OCCUPIED, UNKNOWN, MapData
 from tests.navworld import point_rect_distance, rasterise, scan_of, unicycle
@@ -67,6 +73,15 @@ def _grid(g: np.ndarray) -> OccupancyGrid:
     return OccupancyGrid.from_map_data(MapData(g, RES, (0.0, 0.0, 0.0)))
 
 
+def _walked_in() -> tuple[np.ndarray, OccupancyGrid, Costmap]:
+    """The passage drawn 8 cells wide, and a costmap whose robot came in through it from the hall: (the grid's
+    array, the grid, the costmap)."""
+    g = _floor(8)
+    cm = _costmap(g)
+    _drive(cm, OUTSIDE, INSIDE)
+    return g, _grid(g), cm
+
+
 def test_a_passage_drawn_8_cells_has_middle_cells_within_the_padding_not_within_the_footprint() -> None:
     cm = _costmap(_floor(8))
     door = cm.clearance[DOOR_ROW : DOOR_ROW + 8, 62]
@@ -95,10 +110,7 @@ def test_the_planner_goes_back_out_along_the_trail_and_not_without_it(planner: s
 
 
 def test_the_explorer_reaches_the_frontier_beyond_the_passage_with_the_trail_and_calls_it_narrow_without() -> None:
-    g = _floor(8)
-    grid = _grid(g)
-    cm = _costmap(g)
-    _drive(cm, OUTSIDE, INSIDE)
+    _, grid, cm = _walked_in()
     without = frontier_report(grid, (INSIDE.x, INSIDE.y))
     assert not without.reachable and without.narrow
     trail = cm.trail.mask(grid.origin, grid.resolution, grid.shape)
@@ -244,13 +256,7 @@ def test_the_navigator_drives_back_out_through_the_door_the_map_redrew_narrower(
 def test_a_place_given_up_behind_the_passage_is_measured_with_the_trail_as_one_the_robot_fits() -> None:
     # Given up on every retry round, a place beyond the passage is measured on the map from inside the room: without
     # the trail, the way out is narrower than the robot (given up for good); with it, the robot fits (deferred).
-    from homing.mapping.explorer import RETRY_ROUNDS, Explorer
-    from homing.mapping.strategies import make_strategy
-
-    g = _floor(8)
-    grid = _grid(g)
-    cm = _costmap(g)
-    _drive(cm, OUTSIDE, INSIDE)
+    _, grid, cm = _walked_in()
     reasons = []
     for trail in (None, cm.trail.mask(grid.origin, grid.resolution, grid.shape)):
         ex = Explorer(make_strategy("nearest"), trail=None if trail is None else lambda _, t=trail: t)
@@ -260,3 +266,23 @@ def test_a_place_given_up_behind_the_passage_is_measured_with_the_trail_as_one_t
         reasons.append(ex.blacklist_reasons[0])
     assert reasons[0].endswith("narrower than the robot")
     assert "the robot fits the way in" in reasons[1]
+
+
+def test_the_no_frontier_condition_reads_the_navigator_s_trail() -> None:
+    # The mission's "no frontier left" guard asks the map with the trail the navigator's costmap keeps: inside the
+    # room, the hall's frontier is left with it (FAILURE), and without it the way out is narrow (SUCCESS: done).
+    g, grid, walked = _walked_in()
+    statuses = []
+    for costmap in (_costmap(g), walked):
+        py_trees.blackboard.Blackboard.clear()
+        bb = py_trees.blackboard.Client(name="test")
+        for key in ("/nav/navigator", "/map/grid", "/map/pose"):
+            bb.register_key(key=key, access=Access.WRITE)
+        bb.set("/nav/navigator", SimpleNamespace(costmap=costmap))
+        bb.set("/map/grid", grid)
+        bb.set("/map/pose", INSIDE)
+        cond = NoFrontierLeft("NoFrontierLeft")
+        cond.setup(robot=SimpleNamespace(clock=SimpleNamespace(now=lambda: 0.0)), seed=0)
+        cond.tick_once()
+        statuses.append(cond.status)
+    assert statuses == [Status.SUCCESS, Status.FAILURE]
