@@ -96,6 +96,16 @@ def distance_field(navigator: Any, grid: Any, pose: Pose2) -> np.ndarray | None:
     return distance_map(navigator.costmap, pose, allow_unknown=False, coarse=FIELD_BLOCK)
 
 
+def trail_on(navigator: Any, grid: Any) -> np.ndarray | None:
+    """(H, W) bool: the robot's trail (:mod:`homing.navigation.trail`, kept by the navigator's costmap) on
+    ``grid``'s cells, or None without one: where its centre has been, the map check asks the footprint alone to
+    fit (:func:`homing.mapping.reachable.fits_on_trail`)."""
+    trail = getattr(getattr(navigator, "costmap", None), "trail", None)
+    if trail is None or not trail.version:
+        return None
+    return trail.mask(grid.origin, grid.resolution, grid.shape)
+
+
 class _StartBlocked(Exception):
     """The robot's own cell is blocked on the costmap: the distance field is empty."""
 
@@ -150,7 +160,8 @@ class Explore(_ReportsFailure):
     def _explorer(self) -> Explorer:
         if self.explorer is None:
             self.explorer = Explorer(make_strategy(self.strategy_name), self.rng(), reach_radius=self.reach_radius,
-                                     progress_timeout=self.progress_timeout)
+                                     progress_timeout=self.progress_timeout,
+                                     trail=lambda grid: trail_on(self.navigator, grid))
         return self.explorer
 
     # -- LongAction hooks ---------------------------------------------------------------
@@ -322,7 +333,7 @@ class NoFrontierLeft(HomingBehaviour):
             if not (grid.data == 0).any():  # nothing mapped yet is not a mapped building
                 self.segments, self._answer = -1, False
             else:
-                self.segments = len(frontier_report(grid, (pose.x, pose.y)).reachable)
+                self.segments = len(frontier_report(grid, (pose.x, pose.y), trail=trail_on(nav, grid)).reachable)
                 self._answer = not self.segments
         self.feedback_message = ("no frontier left" if self._answer else "nothing mapped yet" if self.segments < 0
                                  else f"{self.segments} reachable frontier(s)")

@@ -24,7 +24,9 @@ Shared by every strategy, so that they differ only in their rule:
 
 "Done" means done (:mod:`homing.mapping.reachable`): when the strategy finds
 no goal, the map itself is asked which frontiers the robot could reach with
-its footprint from where it is, whatever the costmap says. None left but
+its footprint from where it is, whatever the costmap says (on the robot's
+trail, when the caller gives one, with the footprint alone: the way back
+through a door the map redrew narrower once the robot was through). None left but
 those behind gaps narrower than the robot: done, with the robot's coverage
 estimate and the gaps, each with the width of its way in measured between
 walls through the known free space the lidar saw it through
@@ -137,8 +139,12 @@ class Explorer:
         progress_timeout: float = PROGRESS_TIMEOUT,
         blacklist_radius: float = BLACKLIST_RADIUS,
         robot_radius: float = FOOTPRINT_RADIUS,
+        trail: Callable[[OccupancyGrid], np.ndarray | None] | None = None,
     ) -> None:
         self.strategy = strategy
+        # The robot's trail on a grid's cells ((H, W) bool, or None): where its centre has been, the map check
+        # asks the footprint alone to fit (homing.mapping.reachable.fits_on_trail).
+        self.trail = trail
         self.rng = rng if rng is not None else np.random.default_rng(0)
         self.reach_radius = reach_radius
         self.progress_timeout = progress_timeout
@@ -240,14 +246,23 @@ class Explorer:
     def _ways_in(self, grid: OccupancyGrid, pose: Pose2, places: list[tuple[float, float]],
                  narrow_widths: bool = True) -> list[tuple[float, bool]]:
         """The way in to each place (x, y) [m] (the cells within ``blacklist_radius``) from ``pose`` on ``grid``,
-        walls alone blocking: its width [m] and whether the robot fits (:func:`homing.mapping.navigable.ways_in`)."""
+        walls alone blocking: its width [m] and whether the robot fits (:func:`homing.mapping.navigable.ways_in`;
+        on the robot's trail the footprint alone must fit, as in the map check: a way back through a door the map
+        redrew a cell narrower once the robot was through is no way narrower than the robot)."""
         res = grid.resolution
         rows, cols = np.ogrid[:grid.shape[0], :grid.shape[1]]
         masks = []
         for x, y in places:
             pr, pc = grid.world_to_cell(x, y)
             masks.append((rows - int(pr)) ** 2 + (cols - int(pc)) ** 2 <= (self.blacklist_radius / res) ** 2)
-        return ways_in(grid.data < OCCUPIED_AT, res, _cell_of(grid, pose), masks, self.robot_radius, narrow_widths)
+        start = _cell_of(grid, pose)
+        out = ways_in(grid.data < OCCUPIED_AT, res, start, masks, self.robot_radius, narrow_widths)
+        trail = self._trail(grid)
+        if trail is None or all(fits for _, fits in out):
+            return out
+        g = grid.data
+        region = robot_region((g < OCCUPIED_AT) & clear_of_walls(g, res, self.robot_radius, trail), start, res)
+        return [(width, fits or bool(region[mask].any())) for (width, fits), mask in zip(out, masks, strict=True)]
 
     def _measure_narrow(self, grid: OccupancyGrid, pose: Pose2, report: FrontierReport) -> None:
         """The width [m] of the way in to each of ``report``'s narrow frontiers through known free space (where
@@ -409,7 +424,7 @@ class Explorer:
     def _no_goal(self, grid: OccupancyGrid, pose: Pose2, distance: np.ndarray) -> ExploreStep | None:
         """The strategy found no goal: ask the map (module doc). Returns the step to give, or None after setting
         ``self.choice`` to a frontier the strategy declined but the costmap reaches."""
-        report = frontier_report(grid, (pose.x, pose.y), self.robot_radius)
+        report = frontier_report(grid, (pose.x, pose.y), self.robot_radius, self._trail(grid))
         open_sites = [s for s in report.reachable
                       if not site_blacklisted(s, grid, self.blacklist, self.blacklist_radius)]
         report = report.given_up(len(open_sites))
@@ -476,9 +491,14 @@ class Explorer:
             return []
         g, res = grid.data, grid.resolution
         cell = ((pose.y - grid.origin[1]) / res - 0.5, (pose.x - grid.origin[0]) / res - 0.5)
-        region = robot_region((g == FREE) & clear_of_walls(g, res, self.robot_radius), cell, res)
+        region = robot_region((g == FREE) & clear_of_walls(g, res, self.robot_radius, self._trail(grid)), cell, res)
         near = cv2.dilate(region.astype(np.uint8), disc(radius / res + 1.0)).astype(bool)
         return [s for s in peeks if not near[s.cells[:, 0], s.cells[:, 1]].any()]
+
+    def _trail(self, grid: OccupancyGrid) -> np.ndarray | None:
+        """The robot's trail on ``grid``'s cells, when the caller keeps one (the navigator's costmap does)."""
+        trail = self.trail(grid) if self.trail is not None else None
+        return trail if trail is not None and trail.shape == grid.shape else None
 
     def _given_up_mask(self, grid: OccupancyGrid) -> np.ndarray:
         """(H, W) bool: cells within ``blacklist_radius`` of a place given up."""

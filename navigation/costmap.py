@@ -17,7 +17,18 @@ are combined into one (H, W) uint8 cost array in the ``map`` frame.
 - **inflation**: every cell within ``footprint_radius`` (+ padding) of a lethal
   cell is ``INSCRIBED`` (the robot's centre there means contact); beyond it the
   cost decays as ``252·exp(−k·(d − r_inscribed))`` up to ``inflation_radius``,
-  exactly Nav2's inflation layer, so planners keep a margin from walls.
+  exactly Nav2's inflation layer, so planners keep a margin from walls;
+- **trail** (:mod:`homing.navigation.trail`): the cells the robot's centre
+  has occupied (:meth:`Costmap.mark_trail`) lose the padding, not the
+  footprint: a trail cell farther than ``footprint_radius`` from every lethal
+  cell and farther than the inscribed radius from every keep-out or bumper
+  cell costs ``MAX_NON_OBSTACLE``, not ``INSCRIBED``, so the robot can plan
+  back through a door the map redrew a cell narrower once it was through
+  (a 0.5 m door drawn 8 cells: its two middle cells are 0.20 m from the
+  jambs' centres, the footprint 0.19 m, the inscribed radius 0.215 m). An
+  obstacle later put on the trail brings its cells within the footprint
+  again: they are ``INSCRIBED`` as any other; keep-out zones and bumper
+  marks keep their padding (what the lidar cannot see is not redrawn).
 
 The costmap spans the grid and, while a goal lies beyond it, a box around
 that goal (:meth:`Costmap.require`): the cells outside the grid are unknown,
@@ -37,7 +48,7 @@ from typing import Any
 import cv2
 import numpy as np
 from homing.mapping.distance import squared_distance_cells
-from homing.mapping.navigable import inscribed_radius
+from homing.mapping.navigable import disc, inscribed_radius
 from homing.navigation.layers import (
     BumpMarks,
     Keepout,
@@ -46,6 +57,7 @@ from homing.navigation.layers import (
     parse_keepout,
     rasterise_keepout,
 )
+from homing.navigation.trail import Trail
 from homing.robot import Bumpers, Pose2, Scan
 from homing.robot.turtlebot import FOOTPRINT_RADIUS
 
@@ -135,6 +147,7 @@ class Costmap:
         self._changes: list[tuple[int, tuple[int, int, int, int] | None]] = []  # (version, cells it changed)
         self.keepout: list[Keepout] = []
         self.bumps = BumpMarks()
+        self.trail = Trail()  # where the robot's centre has been (map frame): it fits there (module doc)
         self.required: tuple[float, float, float, float] | None = None  # [m] box the costmap must span
         self._grid: tuple[np.ndarray, float, tuple[float, float]] | None = None  # the last static grid as given
         self._keepout_mask: np.ndarray | None = None
@@ -332,6 +345,26 @@ class Costmap:
         if self.bumps.forget(now) and self.static.size:
             self._inflate()
 
+    def mark_trail(self, pose_in_map: Pose2) -> bool:
+        """The robot's centre is at ``pose_in_map``: add its cell (and the line from the last pose) to the trail;
+        whether a cell's cost changed. Cheap in open space: only new trail cells within the padding of a wall
+        are costed again (module doc), round them alone."""
+        if self.static.size:
+            self.trail.anchor(self.origin, self.resolution)
+        box = self.trail.mark(pose_in_map.x, pose_in_map.y)
+        if box is None or not self.static.size:
+            return False
+        lo = self.world_to_cell(np.array([box[0], box[1]]) + 0.5 * self.resolution)[0]
+        hi = self.world_to_cell(np.array([box[2], box[3]]) - 0.5 * self.resolution)[0]
+        h, w = self.shape
+        r0, r1 = max(int(lo[0]), 0), min(int(hi[0]) + 1, h)
+        c0, c1 = max(int(lo[1]), 0), min(int(hi[1]) + 1, w)
+        if r1 <= r0 or c1 <= c0 or not (self.cost[r0:r1, c0:c1] == INSCRIBED).any():
+            return False
+        before = self.cost[r0:r1, c0:c1].copy()
+        self._inflate((r0, r1, c0, c1))
+        return bool((before != self.cost[r0:r1, c0:c1]).any())
+
     def virtual_points(self, pose: Pose2, radius: float) -> np.ndarray:
         """(M, 2) [m] ``map`` points of what the lidar cannot see (keep-out edges, bumper marks) within ``radius``."""
         return near([*(z.edge() for z in self.keepout), self.bumps.points], pose, radius)
@@ -460,7 +493,8 @@ class Costmap:
         """(clearance [m] float32, cost uint8) over the cells [r0:r1, c0:c1] from the layers there."""
         window = (slice(r0, r1), slice(c0, c1))
         static = self.static[window]
-        lethal = (static == LETHAL) | self.obstacles[window] | self._unseen_layer(window)
+        unseen = self._unseen_layer(window)
+        lethal = (static == LETHAL) | self.obstacles[window] | unseen
         if lethal.any():
             # The exact Euclidean distance to the nearest lethal cell, so the squared distance in cells is an
             # integer: the cost is a table lookup, not an exponential per cell. (The squared distance itself
@@ -470,6 +504,7 @@ class Costmap:
             lut = self._cost_table()
             cost = lut[np.minimum(squared, len(lut) - 1).astype(np.intp)]
             d = np.sqrt(squared) * np.float32(self.resolution)
+            self._lift_trail(window, cost, d, unseen)
         else:
             d = np.full(lethal.shape, np.inf, dtype=np.float32)
             cost = np.zeros(lethal.shape, dtype=np.uint8)
@@ -477,6 +512,22 @@ class Costmap:
         cost[(static == NO_INFORMATION) & (cost < INSCRIBED)] = NO_INFORMATION
         return d, cost
 
+    def _lift_trail(self, window: tuple[slice, slice], cost: np.ndarray, d: np.ndarray, unseen: np.ndarray) -> None:
+        """On the trail (module doc), ``INSCRIBED`` cells whose centre lies farther than the footprint's radius from
+        every lethal cell (``d`` [m]) and farther than the inscribed radius from every keep-out or bumper cell
+        (``unseen``) cost ``MAX_NON_OBSTACLE``: the robot's centre has been there, so the half cell of padding the
+        wall's rasterisation asks for is not needed; the footprint itself stays (a wall or an obstacle drawn
+        within it, since or before, is contact). ``cost`` and ``d`` over ``window``, changed in place."""
+        inscribed = cost == INSCRIBED
+        if not self.trail.version or not inscribed.any():
+            return
+        h, w = cost.shape
+        origin = (self.origin[0] + (window[1].start or 0) * self.resolution,
+                  self.origin[1] + (window[0].start or 0) * self.resolution)
+        lift = inscribed & (d > self.params.footprint_radius) & self.trail.mask(origin, self.resolution, (h, w))
+        if lift.any() and unseen.any():
+            lift &= ~cv2.dilate(unseen.astype(np.uint8), disc(self.inscribed_radius / self.resolution)).astype(bool)
+        cost[lift] = MAX_NON_OBSTACLE
 
     def _cost_table(self) -> np.ndarray:
         """Cost by squared distance in cells (Nav2's inflation), cached for the costmap's parameters."""

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from homing.navigation.controller import CONTROLLERS, CollisionAhead, InvalidPath, path_in_base
-from homing.navigation.costmap import MAX_NON_OBSTACLE, NO_INFORMATION, Costmap
+from homing.navigation.costmap import INSCRIBED, MAX_NON_OBSTACLE, NO_INFORMATION, Costmap
 from homing.robot import Pose2, Twist2
 from homing.robot.turtlebot import FOOTPRINT_RADIUS, NAV_MAX_V
 
@@ -279,6 +279,11 @@ class DWB:
         ok = costmap.inside(rc)
         flat = np.full(len(rc), np.inf, dtype=np.float64)
         flat[ok] = costmap.clearance[rc[ok, 0], rc[ok, 1]]
+        # The robot's trail (homing.navigation.trail) takes the padding off cells the costmap then prices below
+        # INSCRIBED: the footprint fits there, as the planner's path through them says.
+        lifted = np.zeros(len(rc), dtype=bool)
+        lifted[ok] = costmap.cost[rc[ok, 0], rc[ok, 1]] < INSCRIBED
+        flat[lifted] = np.inf
         clear = flat.reshape(k, t)
         rc0 = costmap.world_to_cell(np.array([pose.x, pose.y]))
         c0 = float(costmap.clearance[rc0[0, 0], rc0[0, 1]]) if costmap.inside(rc0)[0] else math.inf

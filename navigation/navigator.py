@@ -13,7 +13,8 @@ and land in ``feedback.error`` so a recovery can choose by cause.
 A goal beyond the grid is planned to all the same: the costmap grows to
 hold it (the cells beyond the grid unknown, crossed at a cost with the
 planner's ``allow_unknown`` as in Nav2) and the path is replanned as the
-grid fills in. A bumper press marks the costmap (see
+grid fills in. The costmap keeps the robot's trail (:mod:`homing.navigation.trail`), so it
+can always plan back the way it came. A bumper press marks the costmap (see
 :mod:`homing.navigation.layers`), backs the robot off ``BUMP_BACKUP`` and
 replans around the mark; keep-out zones and bumper marks reach the
 controller as points beside the scan's, since the lidar cannot see them.
@@ -245,6 +246,9 @@ class Navigator:
         if grid is not None and (key != self._static_key or stale):
             self.costmap.update_static(grid)
             self._static_key, self._static_time = key, obs.stamp
+        if self.costmap.cost.size:
+            # Where the robot's centre is, it fits: the way back through a door the map redraws narrower later.
+            self.costmap.mark_trail(pose_in_map)
         if self.costmap.cost.size and obs.stamp != self._bump_stamp:
             # Bumper presses mark where the robot is now; the marks fade after their memory.
             self._bump_stamp = obs.stamp
