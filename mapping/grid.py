@@ -35,7 +35,10 @@ T_OCC = 0.40  # log-odds above which a cell reads OCCUPIED
 T_FREE = -0.20  # log-odds below which a cell reads FREE
 GROW_CHUNK = 4.0  # [m] margin added on each side that needs to grow
 NO_RETURN_NEIGHBOURS = 2  # rays each side whose returns bound how far a no-return ray clears
-MIN_RETURN_SHARE = 0.5  # a scan with fewer returns than this is a dropout: its no-return rays clear nothing
+MIN_RETURN_SHARE = 0.5  # in a scan with fewer returns, rays without return clear only up to the map's walls,
+OPEN_REACH = 2.0  # [m] ... and no farther than this from the lidar
+WALL_MARGIN = 0.1  # [m] ... stopping this short of the first wall the map holds on their way ...
+DROPOUT_SHARE = 0.5  # ... unless the scan lost more than this share of the returns the map expects: nothing
 CHANGES_KEPT = 16  # changes whose extent is remembered (OccupancyGrid.changed_since)
 NOTHING = (math.inf, math.inf, -math.inf, -math.inf)  # the extent of a change that changed no cell's value
 
@@ -204,6 +207,30 @@ class OccupancyGrid:
         it free. A ray with no return (``inf``) clears up to the nearest
         return of its neighbours (or ``range_max`` if they have none either):
         an isolated dropout pointing at a wall must not clear the wall.
+        Past that, a no-return ray is open space beyond the lidar's reach.
+        In a scan where half the rays or more returned (a room) it clears
+        that reach. In a scan where fewer did (the middle of a hall, or a
+        lidar dropout) it clears ``OPEN_REACH`` round the robot, up to
+        ``WALL_MARGIN`` short of the first wall the map holds on its way,
+        and clears no wall; and if the scan
+        lost more than ``DROPOUT_SHARE`` of the returns the map expects (the
+        rays that returned, and those without return that cross a wall the
+        map holds within reach), a blanked lidar, it clears nothing.
+
+        Measured before this rule (no-return rays cleared nothing in scans
+        where fewer than half the rays returned): in atrium:2's hall 89 % of
+        the scans returned fewer than half (median 25 %), the hall's middle
+        stayed unknown round the robot, and frontier_travel flipped between
+        two goals in a 3 m patch of unknown for 135 s. Stopping at the map's
+        walls in every scan never cleared an obstacle taken away from a room
+        (a day on floor:1: coverage 0.987); clearing through walls in every
+        scan that was no dropout mapped the outside of floor:1 through its
+        walls (grazing dropouts along them): 3141 m² on a 2000 m² floor;
+        clearing through walls the map is not sure of, fading the first one
+        it is sure of a step, lost agreement over a day (0.925), and so did
+        this rule with the lidar's whole reach (0.937). With ``OPEN_REACH``
+        the day keeps it (0.981, coverage 0.997) and atrium:2 and atrium:3
+        end with no patch of the hall unseen (bench explore, two seeds).
         """
         sensor = pose.compose(scan.laser_pose)
         ranges = np.asarray(scan.ranges, dtype=float)
@@ -211,13 +238,20 @@ class OccupancyGrid:
         wraps = abs(abs(scan.angle_increment) * len(ranges) - 2 * math.pi) < 2 * abs(scan.angle_increment)
         clear = _clear_lengths(ranges, hit, scan.range_max, wraps)
         angles = scan.angles + sensor.theta
-        self.integrate_rays(np.array([sensor.x, sensor.y]), angles, clear, hit)
+        open_rays = None  # rays out into open space that stop at the map's walls: in a scan that mostly did not return
+        if len(ranges) and hit.mean() < MIN_RETURN_SHARE:
+            open_rays = ~hit & (clear >= scan.range_max)
+            clear = np.where(open_rays, min(OPEN_REACH, scan.range_max), clear)
+        self.integrate_rays(np.array([sensor.x, sensor.y]), angles, clear, hit, open_rays=open_rays)
 
-    def integrate_rays(self, origin: np.ndarray, angles: np.ndarray, lengths: np.ndarray, hit: np.ndarray) -> None:
+    def integrate_rays(self, origin: np.ndarray, angles: np.ndarray, lengths: np.ndarray, hit: np.ndarray,
+                       open_rays: np.ndarray | None = None) -> None:
         """Trace (N,) rays from ``origin`` (2,) [m, map] at ``angles`` [rad, map] of ``lengths`` [m].
 
         ``hit`` (N,) bool says which rays end on an obstacle (their end cell
-        is marked occupied); the others only clear.
+        is marked occupied); the others only clear. ``open_rays`` (N,) bool:
+        rays without return that stop short of the map's walls, or clear
+        nothing in a dropout, as :meth:`integrate` says.
         """
         ox, oy = float(origin[0]), float(origin[1])
         ends_x = ox + lengths * np.cos(angles)
@@ -249,6 +283,10 @@ class OccupancyGrid:
             v -= corner
             v /= res
             cells.append(np.floor(v, out=v).astype(np.int64))
+        if open_rays is not None and open_rays.any() and ray.size:
+            keep = self._up_to_walls(cells[1], cells[0], ray, counts, open_rays, int(np.count_nonzero(hit)))
+            if keep is not None:
+                cells, ray = [cells[0][keep], cells[1][keep]], ray[keep]
         free_idx = _flat_cells(cells[1], cells[0], h, w)
         # A ray's samples are half a cell apart, so most fall in the cell of the one before: those repeats
         # change nothing (a cell is updated once per scan) and are dropped before the rest of the work.
@@ -273,6 +311,28 @@ class OccupancyGrid:
                          max(ox, float(ends_x.max())), max(oy, float(ends_y.max()))))
         else:
             self._touch(NOTHING)
+
+    def _up_to_walls(self, rows: np.ndarray, cols: np.ndarray, ray: np.ndarray, counts: np.ndarray,
+                     open_rays: np.ndarray, returned: int) -> np.ndarray | None:
+        """(S,) bool: the samples to keep of rays whose samples are ``rows``, ``cols`` (cells) and ``ray`` (each
+        sample's ray; a ray's samples contiguous and in order, ``counts`` per ray): all those of rays not in
+        ``open_rays``; of those in it, the samples before the first that lies within ``WALL_MARGIN`` of a wall
+        the map holds — none in a dropout (``returned`` rays came back; :meth:`integrate`). None: keep all."""
+        h, w = self.shape
+        sel = open_rays[ray] & (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        wall = np.zeros(rows.size, dtype=bool)
+        wall[sel] = self.logodds[rows[sel], cols[sel]] > T_OCC
+        if not wall.any():
+            return None
+        crossing = int(np.count_nonzero(np.bincount(ray[wall], minlength=len(counts))))
+        if crossing > DROPOUT_SHARE * (crossing + returned):  # a blanked lidar: its open rays clear nothing
+            return ~open_rays[ray]
+        m = int(math.ceil(WALL_MARGIN / (0.5 * self.resolution)))  # samples are half a cell apart
+        seen = np.cumsum(wall)  # walls among the samples up to each one
+        first = np.cumsum(counts) - counts  # each ray's first sample
+        before = seen[first] - wall[first]  # walls before each ray's first sample (other rays')
+        ahead = np.minimum(np.arange(rows.size) + m, (first + counts - 1)[ray])  # the last sample within m ahead
+        return seen[ahead] - before[ray] == 0
 
     def clear(self) -> None:
         """Forget everything (all cells unknown)."""
@@ -328,8 +388,7 @@ def _clear_lengths(ranges: np.ndarray, hit: np.ndarray, range_max: float, wraps:
         neighbour_min = np.minimum(neighbour_min, padded[k_max - k: k_max - k + n])
         neighbour_min = np.minimum(neighbour_min, padded[k_max + k: k_max + k + n])
     # A no-return ray among returns clears to just short of the nearest neighbouring return. One among other
-    # no-return rays clears the sensor's reach, but only in a scan that mostly returned (open space beyond
-    # range): in a scan that mostly did not, the lidar dropped out, and clearing its reach would erase the room.
-    far = range_max if hit.mean() >= MIN_RETURN_SHARE else 0.0
-    bounded = np.where(np.isfinite(neighbour_min), 0.9 * neighbour_min, far)
+    # no-return rays clears the sensor's reach (open space beyond range); in a scan that mostly did not return,
+    # only up to the map's walls (OccupancyGrid.integrate): a lidar that dropped out does not erase the room.
+    bounded = np.where(np.isfinite(neighbour_min), 0.9 * neighbour_min, range_max)
     return np.where(hit, ranges, np.minimum(bounded, range_max))

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 from homing.mapping.evaluate import cell_agreement
-from homing.mapping.grid import OccupancyGrid
+from homing.mapping.grid import OPEN_REACH, OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
 from homing.mapping.map_io import load_grid, save_grid
 from homing.robot import Pose2, Scan
@@ -97,6 +97,53 @@ def test_a_blanked_scan_clears_nothing_while_a_scan_of_open_space_still_does():
     open_gap = np.where(np.abs(angles - math.pi / 2) < 0.2, np.inf, 1.5).astype(np.float32)
     grid.integrate(Scan(0.2, -math.pi, 2 * math.pi / 360, open_gap, 0.15, 6.0), Pose2())
     assert grid.value_at(0.0, 4.0) == FREE
+
+
+def test_an_obstacle_taken_away_from_a_room_is_cleared_by_the_rays_that_now_return_nothing():
+    # A room 3 m round with an open door to the east, a box 2 m ahead in the doorway, seen for a while; then it
+    # is gone and the rays through the door return nothing (the space beyond is out of reach). The scan mostly
+    # returned: those rays clear the lidar's reach, the box's cells too. A blanked scan takes no wall away.
+    grid = OccupancyGrid(0.05, (-8.0, -8.0), (320, 320))
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    door = np.abs(angles) < 0.1
+    room = np.where(door, np.inf, 3.0).astype(np.float32)
+    box = np.where(door, 2.0, room).astype(np.float32)
+    for k in range(5):
+        grid.integrate(Scan(0.1 * k, -math.pi, 2 * math.pi / 360, box, 0.15, 6.0), Pose2())
+    assert grid.value_at(2.02, 0.0) == OCCUPIED
+    for k in range(20):
+        grid.integrate(Scan(1.0 + 0.1 * k, -math.pi, 2 * math.pi / 360, room, 0.15, 6.0), Pose2())
+    assert grid.value_at(2.02, 0.0) == FREE and grid.value_at(4.0, 0.0) == FREE
+    walls = grid.data == OCCUPIED
+    assert walls.sum() > 50
+    for k in range(20):
+        grid.integrate(Scan(3.0 + 0.1 * k, -math.pi, 2 * math.pi / 360, np.full(360, np.inf, np.float32), 0.15, 6.0),
+                       Pose2())  # fmt: skip
+    assert (grid.data[walls] == OCCUPIED).all()
+
+
+def test_in_an_open_hall_rays_without_return_clear_up_to_the_walls_the_map_holds():
+    # A hall: one wall 1.2 m to the east, seen by a few rays; nothing else within the lidar's reach. Most rays
+    # return nothing (a scan of open space, no dropout): they clear the hall round the robot, OPEN_REACH far.
+    # Rays without return towards the wall (lost at grazing incidence) do not clear the space behind it.
+    grid = OccupancyGrid(0.05, (-8.0, -8.0), (320, 320))
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    east = np.abs(angles) < 0.6
+    ranges = np.where(east, 1.2 / np.cos(angles), np.inf).astype(np.float32)
+    for k in range(4):
+        grid.integrate(Scan(0.1 * k, -math.pi, 2 * math.pi / 360, ranges, 0.15, 6.0), Pose2())
+    ys, xs = grid.cell_to_world(*np.indices(grid.shape))[::-1]
+    west = (xs < 0) & (np.hypot(xs, ys) < OPEN_REACH - 0.1)
+    assert (grid.data[west] == FREE).mean() > 0.95  # the hall round the robot
+    beyond = (xs < 0) & (np.hypot(xs, ys) > OPEN_REACH + 0.1)
+    assert (grid.data[beyond] == UNKNOWN).all()  # no farther than its reach
+    assert OCCUPIED in (grid.value_at(1.18, 0.3), grid.value_at(1.22, 0.3))  # the face, on a cell boundary
+    lost = ranges.copy()
+    lost[east & (np.arange(360) % 10 < 5)] = np.inf  # five rays in ten on the wall lost, for 30 scans
+    for k in range(30):
+        grid.integrate(Scan(1.0 + 0.1 * k, -math.pi, 2 * math.pi / 360, lost, 0.15, 6.0), Pose2())
+    assert OCCUPIED in (grid.value_at(1.18, 0.3), grid.value_at(1.22, 0.3))
+    assert grid.value_at(1.6, 0.3) != FREE  # behind the wall, within OPEN_REACH
 
 
 def _classified(grid: OccupancyGrid) -> np.ndarray:
