@@ -320,8 +320,13 @@ class CorrelativeMatcher:
         field_max_age: int = 0,
         candidates: int = 1,
         whole_field: bool = False,
+        anchor_theta: float = GN_ANCHOR_THETA,
     ) -> None:
         self.window_xy = window_xy
+        # [rad] per end point: how hard Gauss-Newton holds the correlative optimum's heading (its position is
+        # held by GN_ANCHOR_XY, so that it does not slide along a corridor, whose walls still give the heading).
+        self.anchor_theta = anchor_theta
+        self._anchor = np.diag([1 / GN_ANCHOR_XY**2, 1 / GN_ANCHOR_XY**2, 1 / anchor_theta**2])
         self.candidates = candidates  # top-level poses refined (more: a wide window's peaks not lost to a coarse tie)
         self.prior_xy = prior_xy  # [m]
         self.prior_theta = prior_theta  # [rad]
@@ -371,7 +376,7 @@ class CorrelativeMatcher:
         sub = pts[:: max(1, len(pts) // MAX_POINTS)]
         best = self._correlative(field, sub, prior)
         if self.refine:
-            best, score = self._gauss_newton_scored(field, pts, best)
+            best, score = self._gauss_newton_scored(field, pts, best, self._anchor)
         else:
             score = float(_score(field, pts, best))
         known, known_score = _known_fit(field, pts, best)
@@ -424,8 +429,9 @@ class CorrelativeMatcher:
 
     # ----------------------------------------------------------- Gauss–Newton
     def polish(self, grid: OccupancyGrid, points: np.ndarray, pose: Pose2, max_range: float,
-               anchor_xy: float) -> Pose2:
-        """Gauss–Newton on ``grid`` from ``pose``, pulled towards it by ``anchor_xy`` [m] per end point.
+               anchor_xy: float, anchor_theta: float | None = None) -> Pose2:
+        """Gauss–Newton on ``grid`` from ``pose``, pulled towards it by ``anchor_xy`` [m] and ``anchor_theta`` [rad]
+        (default: the matcher's own) per end point.
 
         :meth:`match` refines its correlative optimum with a tight pull (``GN_ANCHOR_XY``, for a fair
         comparison of matches from different predictions); a tracker that has chosen one polishes it with a
@@ -434,7 +440,8 @@ class CorrelativeMatcher:
         prepared = self._prepare(grid, points, pose, max_range)
         if prepared is None:
             return pose
-        anchor = np.diag([1 / anchor_xy**2, 1 / anchor_xy**2, 1 / GN_ANCHOR_THETA**2])
+        theta = self.anchor_theta if anchor_theta is None else anchor_theta
+        anchor = np.diag([1 / anchor_xy**2, 1 / anchor_xy**2, 1 / theta**2])
         return self._gauss_newton(prepared[1], prepared[0], pose, anchor)
 
     def _gauss_newton(self, field: LikelihoodField, pts: np.ndarray, start: Pose2,
