@@ -5,7 +5,7 @@ live in one process and never see each other). The robot is a kinematic
 cylinder (mass > 0 so Bullet computes its contacts; no gravity, never
 stepped): :mod:`homing.sim.robot` sets its pose and reads its penetrations
 with ``getClosestPoints``. Walls are one static triangle mesh
-(:mod:`homing.sim.walls`); tags are visual-only quads; the dock's collision
+(:mod:`homing.sim.walls`; a few, for a map larger than one Bullet mesh holds); tags are visual-only quads; the dock's collision
 is analytic (:meth:`homing.sim.dock.Dock.push_out`), its body here only drawn.
 
 Only :mod:`homing.sim` imports pybullet (DESIGN.md, rules of the house).
@@ -52,14 +52,18 @@ class Scene:
         p.setGravity(0, 0, 0, physicsClientId=c)
         mesh = build_mesh(world.map, world.wall_height)
         self.n_wall_triangles = len(mesh.indices) // 3
-        verts = mesh.vertices.tolist()
-        idx = mesh.indices.tolist()
-        col = p.createCollisionShape(p.GEOM_MESH, vertices=verts, indices=idx, physicsClientId=c)
-        vis = -1
-        if visuals:
-            vis = p.createVisualShape(p.GEOM_MESH, vertices=verts, indices=idx, normals=mesh.normals.tolist(),
-                                      rgbaColor=WALL_RGBA, physicsClientId=c)
-        self.walls = p.createMultiBody(0, col, vis, physicsClientId=c)
+        bodies = []
+        for piece in mesh.pieces():
+            verts = piece.vertices.tolist()
+            idx = piece.indices.tolist()
+            col = p.createCollisionShape(p.GEOM_MESH, vertices=verts, indices=idx, physicsClientId=c)
+            vis = -1
+            if visuals:
+                vis = p.createVisualShape(p.GEOM_MESH, vertices=verts, indices=idx, normals=piece.normals.tolist(),
+                                          rgbaColor=WALL_RGBA, physicsClientId=c)
+            bodies.append(p.createMultiBody(0, col, vis, physicsClientId=c))
+        self.wall_bodies = tuple(bodies)  # the walls' bodies: one, unless the map is larger than a mesh holds
+        self.walls = bodies[0]
         rob = p.createCollisionShape(p.GEOM_CYLINDER, radius=BASE_RADIUS, height=ROBOT_HEIGHT, physicsClientId=c)
         self.robot = p.createMultiBody(1.0, rob, -1, [0, 0, ROBOT_Z], physicsClientId=c)
         self.tag_bodies: list[int] = []
@@ -118,7 +122,7 @@ class Scene:
         p.resetBasePositionAndOrientation(self.robot, [pose.x, pose.y, ROBOT_Z], _quat_yaw(pose.theta),
                                           physicsClientId=c)
         out = []
-        for body in (self.walls, *self.obstacles.values()):
+        for body in (*self.wall_bodies, *self.obstacles.values()):
             for pt in p.getClosestPoints(self.robot, body, 0.0, physicsClientId=c):
                 if pt[8] >= 0.0:
                     continue

@@ -28,6 +28,8 @@ import numpy as np
 from homing.map_server import FREE, MapData
 
 WALL_HEIGHT = 1.2  # [m] taller than the lidar (0.5 m): rays at a wall's exact top height miss it
+MAX_MESH_VERTICES = 131072  # Bullet's limit for one mesh shape (B3_MAX_NUM_VERTICES): larger ones fail to load
+PIECE_TILE = 10.0  # [m] a mesh too large for one shape is cut into pieces of whole tiles this size, row by row
 
 
 @dataclass(frozen=True)
@@ -42,6 +44,32 @@ class WallMesh:
     indices: np.ndarray
     normals: np.ndarray
     n_quads: int
+
+    def pieces(self, max_vertices: int = MAX_MESH_VERTICES) -> list[WallMesh]:
+        """The mesh cut into meshes of at most ``max_vertices`` each, every quad whole in one of them.
+
+        A floor plan's walls fit one shape. A real building's SLAM map does not
+        (ACES' corrected log, mapped at 5 cm: 181 000 vertices; Edmonton's
+        over a million, its rays' streaks into unknown each a corridor of faces),
+        and Bullet refuses a mesh shape over ``MAX_MESH_VERTICES``. The quads
+        are ordered by the ``PIECE_TILE`` tile their first corner lies in, row
+        of tiles by row, so each piece is a compact band of the building and
+        a ray meets few pieces' bounding boxes.
+        """
+        per = max(1, max_vertices // 4)  # four corners a quad
+        if self.n_quads <= per:
+            return [self]
+        corner = self.vertices[0::4, :2]
+        tile = np.floor((corner - corner.min(axis=0)) / PIECE_TILE).astype(np.int64)
+        order = np.lexsort((tile[:, 0], tile[:, 1]))  # by tile row, then tile column
+        out = []
+        for start in range(0, self.n_quads, per):
+            quads = order[start:start + per]
+            v = (quads[:, None] * 4 + np.arange(4)).reshape(-1)
+            n = len(quads)
+            idx = (np.arange(n)[:, None] * 4 + np.array([0, 2, 1, 0, 3, 2])).reshape(-1).astype(np.int32)
+            out.append(WallMesh(self.vertices[v], idx, self.normals[v], n))
+        return out
 
 
 def solid_mask(data: MapData) -> np.ndarray:
@@ -111,22 +139,24 @@ def build_mesh(data: MapData, height: float = WALL_HEIGHT) -> WallMesh:
         quads.append((((c1 - 1) * res, y), ((c0 - 1) * res, y)))
     # The edge between padded lines k and k+1 is the grid edge at k·res; padded cell k spans
     # grid cell k−1, hence the −1 on the run axis above.
-    verts: list[tuple[float, float, float]] = []
-    norms: list[tuple[float, float, float]] = []
-    idx: list[int] = []
-    for (ax, ay), (bx, by) in quads:
-        a = _local_to_world(data, np.array([[ax, ay]]))[0]
-        b = _local_to_world(data, np.array([[bx, by]]))[0]
-        d = b - a
-        n = np.array([-d[1], d[0]]) / max(float(np.hypot(*d)), 1e-12)  # free side is left of a→b
-        base = len(verts)
-        verts += [(a[0], a[1], 0.0), (b[0], b[1], 0.0), (b[0], b[1], height), (a[0], a[1], height)]
-        norms += [(n[0], n[1], 0.0)] * 4
-        # (a, b, b_top) has normal (b−a)×up, to the right of a→b: reverse it to face the free side.
-        idx += [base, base + 2, base + 1, base, base + 3, base + 2]
+    if not quads:
+        return WallMesh(np.zeros((0, 3)), np.zeros(0, np.int32), np.zeros((0, 3)), 0)
+    ends = np.asarray(quads, dtype=float)  # (Q, 2 ends, 2)
+    a = _local_to_world(data, ends[:, 0])
+    b = _local_to_world(data, ends[:, 1])
+    d = b - a
+    n = np.stack([-d[:, 1], d[:, 0]], axis=1) / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)[:, None]
+    q = len(quads)
+    # Four corners a quad: a, b on the floor, b, a at the top; the free side is left of a→b.
+    xy = np.stack([a, b, b, a], axis=1)  # (Q, 4, 2)
+    z = np.broadcast_to(np.array([0.0, 0.0, height, height]), (q, 4))
+    verts = np.concatenate([xy, z[:, :, None]], axis=2).reshape(-1, 3)
+    norms = np.concatenate([np.repeat(n[:, None, :], 4, axis=1), np.zeros((q, 4, 1))], axis=2).reshape(-1, 3)
+    # (a, b, b_top) has normal (b−a)×up, to the right of a→b: reverse it to face the free side.
+    idx = (np.arange(q)[:, None] * 4 + np.array([0, 2, 1, 0, 3, 2])).reshape(-1).astype(np.int32)
     return WallMesh(
-        np.asarray(verts, dtype=float).reshape(-1, 3),
-        np.asarray(idx, dtype=np.int32),
-        np.asarray(norms, dtype=float).reshape(-1, 3),
+        verts,
+        idx,
+        norms,
         len(quads),
     )

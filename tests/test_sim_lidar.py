@@ -81,7 +81,7 @@ def test_obstacles_added_and_removed_again_and_again_are_seen_where_they_stand_a
 
         def seen() -> list[bool]:
             frac, ids = scene.rays(up, down)
-            return [bool(i >= 0 and i != scene.walls) for i in ids]
+            return [bool(i >= 0 and i not in scene.wall_bodies) for i in ids]
 
         def next_shape() -> int:  # the index Bullet gives the next shape: its table's length
             return p.createCollisionShape(p.GEOM_SPHERE, radius=0.01, physicsClientId=scene.client)

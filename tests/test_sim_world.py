@@ -202,3 +202,37 @@ def test_a_dock_and_tag_on_the_wall_load(tmp_path: Path) -> None:
     world = load_world(world_file(tmp_path, "map: room.yaml\ndock: {x: 0.0, y: 1.5, yaw: 0.0}\n"
                                             "tags:\n  - {id: 3, x: 4.0, y: 1.0, yaw: 3.1416}\n"))
     assert world.dock.station.x == 0.0 and world.tag(3).x == 4.0
+
+
+def test_a_map_larger_than_one_bullet_mesh_is_built_in_pieces(tmp_path: Path) -> None:
+    """A real building's SLAM map can hold more wall faces than Bullet takes in one mesh shape (131 072 vertices:
+    ACES at 5 cm has 181 000, Edmonton a million): the walls are cut into pieces, and rays meet them all."""
+    from homing.sim.scene import Scene
+    from homing.sim.walls import MAX_MESH_VERTICES
+
+    from homing.map_server import OCCUPIED, MapData, save_map
+
+    grid = np.full((240, 240), FREE, dtype=np.int8)  # 12 m × 12 m at 5 cm
+    grid[0, :] = OCCUPIED  # a wall along the bottom, for the dock
+    grid[40::2, 0::2] = OCCUPIED  # a field of one-cell pillars from y = 2 m up: 12 000 of them, four faces each
+    world = load_world(save_map(tmp_path / "pillars.yaml", MapData(grid, 0.05, (0.0, 0.0, 0.0))))
+    mesh = build_mesh(world.map, WALL_HEIGHT)
+    pieces = mesh.pieces()
+    assert len(mesh.vertices) > MAX_MESH_VERTICES and len(pieces) >= 2
+    assert all(len(p.vertices) <= MAX_MESH_VERTICES for p in pieces)
+    assert sum(p.n_quads for p in pieces) == mesh.n_quads
+    whole = {tuple(np.round(mesh.vertices[t].ravel(), 6)) for t in mesh.indices.reshape(-1, 3)}
+    cut = {tuple(np.round(p.vertices[t].ravel(), 6)) for p in pieces for t in p.indices.reshape(-1, 3)}
+    assert cut == whole  # the same triangles, wound the same way
+    scene = Scene(world, visuals=False)
+    try:
+        assert len(scene.wall_bodies) == len(pieces)
+        # Up from the pillar-free strip along pillar columns at both ends of the room: the first pillar's face
+        # is at y = 2 m, 1.5 m from y = 0.5; and along a column between pillars, the room's top edge at 12 m.
+        xs = (0.025, 11.925, 11.975)
+        frac, ids = scene.rays(np.array([[x, 0.5, 0.3] for x in xs]), np.array([[x, 12.5, 0.3] for x in xs]))
+        assert frac[:2] * 12.0 == pytest.approx([1.5, 1.5], abs=1e-6)
+        assert frac[2] * 12.0 == pytest.approx(11.5, abs=1e-6)
+        assert all(int(i) in scene.wall_bodies for i in ids)
+    finally:
+        scene.close()
