@@ -86,6 +86,10 @@ def test_a_gap_narrower_than_the_robot_is_reported_once_and_exploration_ends() -
     assert abs(site.y - 2.0) < 0.3 and 4.4 <= site.x <= 5.2  # beyond the gap, in room B
     # The robot knows it has not seen the room behind the gap: its estimate counts what the gap hides.
     assert 0.4 < report.coverage_estimate < 0.9
+    # ... and says apart what it can reach (all of it seen) and what the gap hides, as the benchmark does
+    hidden = report.free_area / report.coverage_estimate - report.free_area
+    assert report.unseen_reach == 0.0 and report.unseen_beyond == pytest.approx(hidden)
+    assert f"(100% of what the robot can reach; {hidden:.0f} m² unseen behind 1 gap(s)" in report.summary()
     for name in ("frontier_travel", "nearest", "gain_rate"):
         ex = Explorer(make_strategy(name), np.random.default_rng(0))
         step = ex.update(grid, _pose(robot), dist, 0.0)
