@@ -10,8 +10,10 @@ map, for a world of ``homing bench explore``:
    the costmap's rule for where the footprint fits; space behind passages
    narrower than the robot is reported beside it, not counted);
 2. viewpoints: cells of that area where the robot's centre fits, on a
-   ``SPACING`` lattice, and the start; each sees the free cells its lidar's rays reach (``RAYS`` rays,
-   ``LIDAR_RANGE``, stopping at the first wall);
+   ``SPACING`` lattice, and the start; each sees every free cell in sight within ``LIDAR_RANGE`` (rays
+   stopping at the first wall: ``RAYS``, or more on a map so fine that neighbouring rays would pass more than
+   a cell apart at that range — a robot's scans from the poses on its way fill the gaps between one
+   scan's rays, and a floor must not charge for them);
 3. a greedy set cover (the start first, then the viewpoint seeing the most
    cells not yet seen) until ``TARGET`` of the cells are seen;
 4. the shortest open tour from the start through those viewpoints by path
@@ -59,12 +61,15 @@ class Bound:
 
 def visible_cells(free: np.ndarray, resolution: float, cells: np.ndarray) -> list[np.ndarray]:
     """For each of ``cells`` (N, 2) (row, col), the flat indices into ``free`` (H, W) bool of the free cells a
-    lidar there sees: ``RAYS`` rays sampled every half cell out to ``LIDAR_RANGE`` [m], stopping at the first
-    cell that is not free."""
+    lidar there sees: rays sampled every half cell out to ``LIDAR_RANGE`` [m], stopping at the first cell that
+    is not free — ``RAYS`` of them, or as many as keep neighbouring rays within a cell of each other at that
+    range (754 on a 5 cm map, where 360 left a viewpoint of FHW's museum blind to half the cells 6 m away and
+    the bound 15 % longer than the robot's own time to 95 %)."""
     h, w = free.shape
     n_s = int(LIDAR_RANGE / (0.5 * resolution))
     r = (np.arange(n_s) + 0.5) * 0.5  # [cells]
-    a = np.arange(RAYS) * (2 * np.pi / RAYS)
+    rays = max(RAYS, int(math.ceil(2 * math.pi * LIDAR_RANGE / resolution)))
+    a = np.arange(rays) * (2 * np.pi / rays)
     dr, dc = np.sin(a)[:, None] * r[None, :], np.cos(a)[:, None] * r[None, :]
     pad = n_s // 2 + 2
     padded = np.pad(free, pad, constant_values=False)

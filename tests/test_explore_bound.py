@@ -25,6 +25,21 @@ def test_a_lidar_sees_its_room_and_not_through_the_wall():
     assert not seen[:, 31:].any()
 
 
+def test_on_a_fine_map_a_viewpoint_sees_every_cell_in_its_reach():
+    """At 5 cm, 360 rays pass 10 cm apart 6 m out: a viewpoint would miss every other cell there, and the bound
+    would charge viewpoints for them. Every cell of an empty hall within the lidar's reach is seen."""
+    res = 0.05
+    n = int(2 * LIDAR_RANGE / res) + 21
+    free = np.ones((n, n), bool)
+    c = n // 2
+    seen = np.zeros(free.size, bool)
+    seen[visible_cells(free, res, np.array([[c, c]]))[0]] = True
+    yy, xx = np.mgrid[0:n, 0:n]
+    within = np.hypot(yy - c, xx - c) * res <= LIDAR_RANGE - 2 * res
+    assert seen.reshape(free.shape)[within].all()
+    assert not seen.reshape(free.shape)[np.hypot(yy - c, xx - c) * res > LIDAR_RANGE + 2 * res].any()
+
+
 def test_greedy_cover_takes_the_start_then_the_largest_gain():
     sets = [np.array([0, 1, 2]), np.array([2, 3]), np.array([3, 4, 5]), np.array([5])]
     assert greedy_cover(sets, 6, 0) == [0, 2]
