@@ -154,7 +154,8 @@ def navigable(free: np.ndarray, resolution: float, origin: tuple[float, float], 
     clearance = distance_cells(free)  # [cells] to the nearest cell that is not free
     parts = [k for k in range(1, n) if float(stats[k, cv2.CC_STAT_AREA]) * resolution**2 >= MIN_BLOCKED]
     blocked = []
-    for k, t in zip(parts, _bottlenecks(clearance, region, [labels == k for k in parts], r_cells), strict=True):
+    cells = _cells_by_label(labels, parts)
+    for k, t in zip(parts, _bottlenecks(clearance, region, cells, r_cells), strict=True):
         area = float(stats[k, cv2.CC_STAT_AREA]) * resolution**2
         cx, cy = centroids[k]
         blocked.append(Blocked(origin[0] + (cx + 0.5) * resolution, origin[1] + (cy + 0.5) * resolution, area,
@@ -191,7 +192,7 @@ def ways_in(free: np.ndarray, resolution: float, start: tuple[int, int], places:
     # Every cell of the region clears more than r_cells: through it the bottleneck is the cap itself.
     cap = float(clearance[(clearance > 0) & (clearance <= r_cells)].max(initial=0.0))
     out: list[tuple[float, bool]] = []
-    narrow: dict[int, np.ndarray] = {}  # index in places -> its free cells, for the bottleneck search
+    narrow: dict[int, np.ndarray] = {}  # index in places -> its free cells (flat indices), for the bottleneck search
     for i, place in enumerate(places):
         if not (place & free).any():
             out.append((0.0, False))
@@ -199,7 +200,7 @@ def ways_in(free: np.ndarray, resolution: float, start: tuple[int, int], places:
             out.append((max(0.0, (2.0 * cap - 0.5) * resolution), True))
         elif narrow_widths:
             out.append((math.nan, False))
-            narrow[i] = place & free
+            narrow[i] = np.flatnonzero(place & free)
         else:
             out.append((math.nan, False))
     if narrow:
@@ -219,19 +220,34 @@ def _component_at(mask: np.ndarray, cell: tuple[int, int]) -> np.ndarray:
     return labels == lab
 
 
+def _cells_by_label(labels: np.ndarray, wanted: list[int]) -> list[np.ndarray]:
+    """The flat indices of the cells of each label in ``wanted``, in one pass over ``labels`` (H, W) int (a mask
+    per label would hold the grid once per label: a 5000 × 5000 floor's places took gigabytes)."""
+    flat = labels.ravel()
+    idx = np.flatnonzero(np.isin(flat, wanted))
+    lab = flat[idx]
+    order = np.argsort(lab, kind="stable")
+    idx, lab = idx[order], lab[order]
+    starts = np.searchsorted(lab, wanted, side="left")
+    ends = np.searchsorted(lab, wanted, side="right")
+    return [idx[a:b] for a, b in zip(starts, ends, strict=True)]
+
+
 def _bottlenecks(clearance: np.ndarray, region: np.ndarray, places: list[np.ndarray], at_most: float) -> list[float]:
-    """[cells] for each of ``places`` (H, W) bool, the largest clearance t ≤ ``at_most`` such that cells of
-    clearance ≥ t join ``region`` to it, 0 when nothing does.
+    """[cells] for each of ``places`` (flat indices into the grid), the largest clearance t ≤ ``at_most`` such that
+    cells of clearance ≥ t join ``region`` to it, 0 when nothing does.
 
     The clearances that occur up to ``at_most`` are few (a distance transform's values under the robot's radius
     in cells: a dozen), so they are tried from the largest down, one labelling each, for all places at once: the
     first that joins a place is its bottleneck (cells clear of t are clear of every smaller one). A binary search
     a place took six labellings each, and a real building's map has hundreds of places behind cracks (ACES' log:
     13 s to measure them)."""
-    values = np.unique(clearance[(clearance > 0) & (clearance <= at_most)])[::-1]
-    seed = tuple(np.argwhere(region)[0])
-    cells = [np.flatnonzero(place) for place in places]
     out = [0.0] * len(places)
+    if not places:
+        return out
+    values = np.unique(clearance[(clearance > 0) & (clearance <= at_most)])[::-1]
+    first = int(np.argmax(region))  # a cell of the region (argwhere would list all of them: 400 MB on 5000²)
+    seed = (first // region.shape[1], first % region.shape[1])
     left = list(range(len(places)))
     for t in values:
         if not left:
@@ -239,7 +255,7 @@ def _bottlenecks(clearance: np.ndarray, region: np.ndarray, places: list[np.ndar
         joined = _component_at(clearance >= t, seed).ravel()  # the region's cells all clear t (t ≤ at_most)
         still = []
         for i in left:
-            if joined[cells[i]].any():
+            if joined[places[i]].any():
                 out[i] = float(t)
             else:
                 still.append(i)
