@@ -5,8 +5,9 @@ live in one process and never see each other). The robot is a kinematic
 cylinder (mass > 0 so Bullet computes its contacts; no gravity, never
 stepped): :mod:`homing.sim.robot` sets its pose and reads its penetrations
 with ``getClosestPoints``. Walls are one static triangle mesh
-(:mod:`homing.sim.walls`; a few, for a map larger than one Bullet mesh holds); tags are visual-only quads; the dock's collision
-is analytic (:meth:`homing.sim.dock.Dock.push_out`), its body here only drawn.
+(:mod:`homing.sim.walls`; a few, for a map larger than one Bullet mesh
+holds); tags are visual-only quads; the dock's collision is analytic
+(:meth:`homing.sim.dock.Dock.push_out`), its body here only drawn.
 
 Only :mod:`homing.sim` imports pybullet (DESIGN.md, rules of the house).
 """
