@@ -154,7 +154,7 @@ def navigable(free: np.ndarray, resolution: float, origin: tuple[float, float], 
     clearance = distance_cells(free)  # [cells] to the nearest cell that is not free
     parts = [k for k in range(1, n) if float(stats[k, cv2.CC_STAT_AREA]) * resolution**2 >= MIN_BLOCKED]
     blocked = []
-    cells = _cells_by_label(labels, parts)
+    cells = cells_by_label(labels, parts)
     for k, t in zip(parts, _bottlenecks(clearance, region, cells, r_cells), strict=True):
         area = float(stats[k, cv2.CC_STAT_AREA]) * resolution**2
         cx, cy = centroids[k]
@@ -220,7 +220,7 @@ def _component_at(mask: np.ndarray, cell: tuple[int, int]) -> np.ndarray:
     return labels == lab
 
 
-def _cells_by_label(labels: np.ndarray, wanted: list[int]) -> list[np.ndarray]:
+def cells_by_label(labels: np.ndarray, wanted: list[int]) -> list[np.ndarray]:
     """The flat indices of the cells of each label in ``wanted``, in one pass over ``labels`` (H, W) int (a mask
     per label would hold the grid once per label: a 5000 × 5000 floor's places took gigabytes)."""
     flat = labels.ravel()

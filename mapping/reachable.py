@@ -81,7 +81,7 @@ import numpy as np
 from homing.mapping.distance import distance_cells
 from homing.mapping.frontier import OCCUPIED_AT
 from homing.mapping.grid import OccupancyGrid
-from homing.mapping.navigable import centre_fits, disc, inscribed_radius
+from homing.mapping.navigable import cells_by_label, centre_fits, disc, inscribed_radius
 from homing.mapping.strategies import VIEW_RAYS, visible_unknown
 from homing.robot.turtlebot import FOOTPRINT_RADIUS
 
@@ -239,13 +239,9 @@ def _sites(mask: np.ndarray, grid: OccupancyGrid, peek: bool = False) -> list[Fr
     n, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
     if n <= 1:
         return []
-    rows, cols = np.nonzero(labels)
-    lab = labels[rows, cols]
-    order = np.argsort(lab, kind="stable")
-    rows, cols = rows[order], cols[order]
-    ends = np.cumsum(np.bincount(lab, minlength=n)[1:])
-    parts = [(r, c) for r, c in zip(np.split(rows, ends[:-1]), np.split(cols, ends[:-1]), strict=True)
-             if len(r) * grid.resolution >= MIN_SITE]
+    w = labels.shape[1]
+    parts = [(idx // w, idx % w) for idx in cells_by_label(labels, list(range(1, n)))
+             if len(idx) * grid.resolution >= MIN_SITE]
     samples = []
     for r, c in parts:
         step = max(1, len(r) // VIEW_SAMPLES)
