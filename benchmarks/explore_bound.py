@@ -104,7 +104,7 @@ def visible_cells(free: np.ndarray, resolution: float, cells: np.ndarray) -> lis
 
 
 def greedy_cover(sets: list[np.ndarray], need: int, first: int) -> list[int]:
-    """Indices of ``sets`` (flat cell indices each) whose union has at least ``need`` cells: ``first``, then
+    """Indices of ``sets`` (flat cell indices each, none twice) whose union has at least ``need`` cells: ``first``, then
     greedily the set adding the most (lazy evaluation: a set's gain only shrinks)."""
     seen = np.zeros(max((int(s.max()) + 1 for s in sets if len(s)), default=0), dtype=bool)
     seen[sets[first]] = True
