@@ -7,6 +7,10 @@ import math
 import numpy as np
 from homing.robot.types import Pose2
 
+from tests.conftest import REPO
+
+SHARED_CARMEN = REPO.parent / "shared" / "datasets" / "carmen"  # the five Radish logs (a dev checkout's)
+
 # A 12 m × 8 m room with a pillar and a wall stub, so that scans pin every direction.
 ROOM = [((0, 0), (12, 0)), ((12, 0), (12, 8)), ((12, 8), (0, 8)), ((0, 8), (0, 0)),
         ((5, 3), (6, 3)), ((6, 3), (6, 4)), ((6, 4), (5, 4)), ((5, 4), (5, 3)),

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +15,7 @@ from homing.robot import Odometry, Pose2, Scan
 from homing.robot.frames import wrap_angle
 from homing.robot.types import Twist2
 
-from tests.log_helpers import cast
+from tests.log_helpers import SHARED_CARMEN, cast
 
 # A ring of corridors 3 m wide round a 18 m × 10 m block (68 m a lap along the middle), with a few door niches so
 # that a place can be told from another; the robot drives it anticlockwise from the south-west corner.
@@ -214,9 +213,6 @@ def test_bad_parameters_are_refused_with_the_reason() -> None:
         LifelongConfig(cover_radius=0.45, tie_radius=0.3)
     with pytest.raises(ValueError, match="closure_gap must be ≥ 0"):
         LifelongConfig(closure_gap=-1.0)
-
-
-SHARED_CARMEN = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "carmen"
 
 
 @pytest.mark.skipif(not (SHARED_CARMEN / "fhw-corrected.log.gz").is_file(),

@@ -13,10 +13,8 @@ from homing.logs.carmen import read_carmen
 from homing.robot.types import Pose2
 
 from homing.errors import UserError
-from tests.conftest import REPO
-from tests.log_helpers import cast, flaser_line, odom_line
+from tests.log_helpers import SHARED_CARMEN, cast, flaser_line, odom_line
 
-SHARED_CARMEN = REPO.parent / "shared" / "datasets" / "carmen"
 FLASER_ANGLES = -math.pi / 2 + np.arange(180) * math.radians(1.0)  # 180 beams over 180°
 
 

@@ -14,7 +14,14 @@ from homing.missions.cli import main
 from homing.robot.types import Pose2
 
 from homing.errors import UserError
-from tests.log_helpers import cast, drifting_odometry, flaser_line, loop_trajectory, odom_line
+from tests.log_helpers import (
+    SHARED_CARMEN,
+    cast,
+    drifting_odometry,
+    flaser_line,
+    loop_trajectory,
+    odom_line,
+)
 
 
 def test_relations_metric_reproduces_hand_computed_errors() -> None:
@@ -89,9 +96,6 @@ def test_pose_graph_beats_odometry_on_a_synthetic_log(tmp_path: Path) -> None:
     assert errs["graph"].trans_mean < 0.03 < errs["odometry"].trans_mean
     assert errs["graph"].trans_mean < 0.3 * errs["odometry"].trans_mean
     assert errs["graph"].rot_mean < 0.3 * errs["odometry"].rot_mean
-
-
-SHARED_CARMEN = Path(__file__).resolve().parents[1].parent / "shared" / "datasets" / "carmen"
 
 
 @pytest.mark.skipif(not (SHARED_CARMEN / "aces-corrected.log.gz").is_file(),
