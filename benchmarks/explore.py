@@ -334,7 +334,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also write every run's figures to PATH (rewritten as each run finishes)")
     parser.add_argument("--resume", action="store_true",
                         help="with --runs-json: keep the runs that file already holds and run only the others (a "
-                             "sweep split over several sittings; the file must come from the same code)")
+                             "sweep split over several sittings; the file must come from the same code); runs "
+                             "it holds that this sweep does not ask for stay in it")
     parser.add_argument("--from-runs", nargs="+", metavar="PATH",
                         help="run nothing: tabulate the runs saved by earlier --runs-json (e.g. baselines and "
                              "the default run separately), filtered by --worlds/--strategies when given")
@@ -371,6 +372,7 @@ def run(args: argparse.Namespace) -> int:
         args.seeds = len({r.seed for r in results})
         jobs = []
     kept: list[RunResult] = []
+    others: list[RunResult] = []  # runs the file holds that this sweep does not ask for: written back untouched
     if args.resume:
         if not args.runs_json:
             raise UserError("--resume needs --runs-json PATH (the runs to keep and add to)")
@@ -378,6 +380,7 @@ def run(args: argparse.Namespace) -> int:
             saved = load_runs([args.runs_json], list(STRATEGIES), None)
             wanted = {(world_label(w), s, seed) for w, s, seed, *_ in jobs}
             kept = [r for r in saved if (r.world, r.strategy, r.seed) in wanted]
+            others = [r for r in saved if (r.world, r.strategy, r.seed) not in wanted]
             have = {(r.world, r.strategy, r.seed) for r in kept}
             jobs = [j for j in jobs if (world_label(j[0]), j[1], j[2]) not in have]
             results = list(kept)
@@ -388,7 +391,7 @@ def run(args: argparse.Namespace) -> int:
         advance(_describe(o.result) if o.ok else f"{_job_label(o.job)}: failed")
         if o.ok and args.runs_json:  # every finished run is kept, so a sweep stopped early keeps what it ran
             finished.append(o.result)
-            write_json(args.runs_json, {"runs": [asdict(r) for r in finished]})
+            write_json(args.runs_json, {"runs": [asdict(r) for r in [*others, *finished]]})
 
     with progress_bar("explore", len(jobs)) as advance:
         outcomes = run_jobs(_job, jobs, engine, done)
@@ -434,7 +437,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"failed: {_job_label(tuple(f['job']))}: {f['error']}")
     write_json(args.json, {**summary, "failed": failed} if failed else summary)
     if args.runs_json:
-        write_json(args.runs_json, {"runs": [asdict(r) for r in results]})
+        write_json(args.runs_json, {"runs": [asdict(r) for r in [*others, *results]]})
     return 0
 
 

@@ -370,6 +370,10 @@ def test_a_sweep_resumed_keeps_the_runs_its_file_holds_and_runs_only_the_others(
     after = {r["seed"]: r for r in json.loads(runs.read_text())["runs"]}
     assert sorted(after) == [0, 1] and after[0]["area"] == 12345.0 and after[1]["area"] < 1000.0
     assert "1 run(s) kept" in capsys.readouterr().out
+    # A narrower sweep resumed from the same file (one seed of the two) runs nothing and loses no run of it.
+    assert main([*args, "--seeds", "1"]) == 0
+    again = {r["seed"]: r for r in json.loads(runs.read_text())["runs"]}
+    assert again == after
     assert main(["bench", "explore", "--worlds", "lab", "--resume"]) == 2  # nothing to resume from
 
 
