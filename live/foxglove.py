@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import collections
 import queue
+import socket
 import sys
 import threading
 import time
@@ -106,6 +107,10 @@ SNAPSHOT_HZ = 20.0  # [Hz] wall-clock snapshots at most
 MAP_HZ = 4.0  # [Hz] wall-clock grids at most (a 300 × 200 grid is 60 kB a message)
 FRONTIER_HZ = 1.0  # [Hz] wall-clock frontier computations at most (a smoothed-frontier pass costs ~10 ms)
 LOG_BACKLOG = 10_000  # log lines waiting for the server thread, at most (the oldest are dropped)
+# [s] how long close() waits for the port to be free once the server is told to stop: the SDK's stop() returns
+# before its runtime has closed the listening socket (a test listing listeners saw it still open 1 time in 15),
+# and a server started again on the same port would then fail to bind.
+RELEASE_WAIT = 2.0
 LANDMARKS_KEY = "/slam/landmarks"  # homing.behaviours.tag_slam_service's
 READS = (GRID_KEY, POSE_KEY, MAP_TO_ODOM_KEY, LOCALIZED_KEY, NAVIGATOR_KEY, EXPLORE_GOAL_KEY, DOCK_KEY, ENERGY_KEY,
          CYCLES_KEY, STATE_KEY, LANDMARKS_KEY)
@@ -253,6 +258,7 @@ class FoxgloveServer:
         if self.server is not None:
             self.server.stop()
             self.server = None
+            _wait_released(self.host, self.port)
         if self.writer is not None:
             self.writer.close()
             self.writer = None
@@ -347,3 +353,22 @@ def _frontier_cells(g: GridCopy) -> np.ndarray:
 
     segments = [s.cells for s in smoothed_frontiers(g.data, g.resolution)]
     return np.concatenate(segments) if segments else np.zeros((0, 2), np.int64)
+
+
+def _wait_released(host: str, port: int | None, wait: float = RELEASE_WAIT) -> bool:
+    """Whether ``port`` on ``host`` can be bound again (nothing listens there) within ``wait`` [s]; tried every 10 ms."""
+    if port is None:
+        return True
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    deadline = time.monotonic() + wait
+    while True:
+        with socket.socket(family, socket.SOCK_STREAM) as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as a server binds: TIME_WAIT is no listener
+            try:
+                probe.bind((host, port))
+                return True
+            except OSError:
+                pass
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.01)
