@@ -157,6 +157,7 @@ class FoxgloveServer:
             except OSError as err:
                 if self.server is not None:
                     self.server.stop()
+                    _wait_released(self.host, self.server.port)
                 raise UserError(f"--foxglove-record: cannot write: {err.strerror or err}", str(record)) from None
         ctx = self.context
         self.channels: dict[str, Any] = {
