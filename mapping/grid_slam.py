@@ -77,6 +77,10 @@ TRACKING_PRIOR_XY = 0.03
 # with the one-shot default (3°) noise alone turned the map by 0.5–1° in the first seconds, and every
 # later scan was matched to that turned map (mean pose error 2× odometry's on twelve recorded runs).
 TRACKING_PRIOR_THETA = math.radians(0.5)
+# The heading's prior weighs as on a scan of at least this many end points (CorrelativeMatcher's prior_points): a
+# room's scan (180 and more after decimation) as before; an open hall's scan of 40 returns, whose mean field value a
+# 0.5° step off the gyro gains by chance, is held 4.5 times as tightly (as 0.24° would hold it per point).
+TRACKING_PRIOR_POINTS = 180
 # Sub-cell Gauss–Newton refinement after the correlative search (scan_match): with the heading held by
 # the prior above it no longer slides along corridors, and it removes the search's 5 cm / 0.5° steps.
 TRACKING_REFINE = True
@@ -167,7 +171,7 @@ class GridSlam:
         self.matcher: ScanMatcher | None = (
             (matcher or CorrelativeMatcher(prior_xy=TRACKING_PRIOR_XY, prior_theta=TRACKING_PRIOR_THETA,
                                            refine=TRACKING_REFINE, field_max_age=FIELD_MAX_AGE,
-                                           whole_field=True))
+                                           whole_field=True, prior_points=TRACKING_PRIOR_POINTS))
             if use_matcher
             else None
         )

@@ -321,8 +321,14 @@ class CorrelativeMatcher:
         candidates: int = 1,
         whole_field: bool = False,
         anchor_theta: float = GN_ANCHOR_THETA,
+        prior_points: int = 0,
     ) -> None:
         self.window_xy = window_xy
+        # The heading's prior (PRIOR_PENALTY's heading term, the Gauss-Newton anchor's) weighs as if the scan had
+        # at least this many end points (0: as many as it has). A scan's fit is a sum over its points, the gyro's
+        # prior one term: weighed per point, a sparse scan (an open hall's 40 returns) outweighs the gyro as easily
+        # as a room's 300 do, though its fit is far noisier for the same heading.
+        self.prior_points = prior_points
         # [rad] per end point: how hard Gauss-Newton holds the correlative optimum's heading (its position is
         # held by GN_ANCHOR_XY, so that it does not slide along a corridor, whose walls still give the heading).
         self.anchor_theta = anchor_theta
@@ -412,8 +418,9 @@ class CorrelativeMatcher:
         n_a = max(1, int(math.ceil(self.window_theta / a_step)))
         offs = np.arange(-n_xy, n_xy + 1) * top_res
         thetas = prior.theta + np.arange(-n_a, n_a + 1) * a_step
+        n_prior = max(len(pts), self.prior_points)
         starts = _search(field.level(self.levels), top_res, field.origin, pts, prior.x + offs, prior.y + offs,
-                         thetas, prior, self.prior_xy, self.prior_theta, self.candidates)
+                         thetas, prior, self.prior_xy, self.prior_theta, self.candidates, n_prior)
         # Finer levels: ±1 step around the best of the coarser level, from each of the top level's best poses.
         found = []
         for x, y, th, score in starts:
@@ -422,7 +429,7 @@ class CorrelativeMatcher:
                 a_step = ANGLE_STEP * 2**k
                 step = np.array([-1.0, 0.0, 1.0])
                 x, y, th, score = _search(field.level(k), lres, field.origin, pts, x + step * lres, y + step * lres,
-                                          th + step * a_step, prior, self.prior_xy, self.prior_theta)[0]
+                                          th + step * a_step, prior, self.prior_xy, self.prior_theta, 1, n_prior)[0]
             found.append((score, x, y, th))
         _, x, y, th = max(found)
         return Pose2(x, y, th)
@@ -457,6 +464,8 @@ class CorrelativeMatcher:
         # refinement is for sub-cell accuracy and must not slide along a corridor.
         p0 = start.as_array()
         w_prior = anchor * len(pts)
+        if self.prior_points > len(pts):
+            w_prior[2, 2] = anchor[2, 2] * self.prior_points
         for _ in range(GN_ITERATIONS):
             J, r = _residuals(field, pts, xi)
             H = J.T @ J + w_prior
@@ -509,6 +518,7 @@ def _search(
     prior_xy: float,
     prior_theta: float,
     keep: int = 1,
+    n_prior: int | None = None,
 ) -> list[tuple[float, float, float, float]]:
     """Score every pose of the grid xs × ys × thetas at once; return the ``keep`` best (x, y, θ, score), best first.
 
@@ -516,7 +526,8 @@ def _search(
     better one (one step in x, y or θ).
 
     A small penalty for straying from ``prior`` breaks ties (a featureless
-    corridor scores the same all along it) in favour of odometry.
+    corridor scores the same all along it) in favour of odometry; its heading term weighs as ``n_prior``
+    points' worth (default: as many as ``pts`` has).
     """
     c, s = np.cos(thetas), np.sin(thetas)
     # Rotated points (T, M). ``xs`` and ``ys`` step by one cell, so a point's cell under offset (i, j) is its
@@ -545,9 +556,9 @@ def _search(
         first = np.flatnonzero(np.r_[True, edge_t[1:] != edge_t[:-1]])
         sums[edge_t[first]] += np.add.reduceat(v, first, axis=0)
     dth = np.arctan2(np.sin(thetas - prior.theta), np.cos(thetas - prior.theta))
-    penalty = PRIOR_PENALTY * len(pts) * (
-        ((xs[None, :, None] - prior.x) ** 2 + (ys[None, None, :] - prior.y) ** 2) / prior_xy**2
-        + (dth[:, None, None] / prior_theta) ** 2
+    penalty = PRIOR_PENALTY * (
+        len(pts) * ((xs[None, :, None] - prior.x) ** 2 + (ys[None, None, :] - prior.y) ** 2) / prior_xy**2
+        + (len(pts) if n_prior is None else n_prior) * (dth[:, None, None] / prior_theta) ** 2
     )
     scores = sums - penalty  # (T, X, Y)
     if keep == 1:

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 from homing.mapping.evaluate import cell_agreement
-from homing.mapping.grid import OPEN_REACH, OccupancyGrid
+from homing.mapping.grid import L_FREE, L_OCC, OPEN_REACH, OccupancyGrid
 from homing.mapping.grid_slam import GridSlam
 from homing.mapping.map_io import load_grid, save_grid
 from homing.robot import Pose2, Scan
@@ -124,19 +124,26 @@ def test_an_obstacle_taken_away_from_a_room_is_cleared_by_the_rays_that_now_retu
 
 def test_in_an_open_hall_rays_without_return_clear_up_to_the_walls_the_map_holds():
     # A hall: one wall 1.2 m to the east, seen by a few rays; nothing else within the lidar's reach. Most rays
-    # return nothing (a scan of open space, no dropout): they clear the hall round the robot, OPEN_REACH far.
-    # Rays without return towards the wall (lost at grazing incidence) do not clear the space behind it.
+    # return nothing (a scan of open space, no dropout): they clear the hall round the robot, OPEN_REACH far,
+    # and past that, to the lidar's reach, only cells no ray has touched (a cell the map has a word on, here
+    # one that read a wall once and free twice, is left as it is). Rays without return towards the wall (lost
+    # at grazing incidence) do not clear the space behind it.
     grid = OccupancyGrid(0.05, (-8.0, -8.0), (320, 320))
     angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
     east = np.abs(angles) < 0.6
     ranges = np.where(east, 1.2 / np.cos(angles), np.inf).astype(np.float32)
-    for k in range(4):
-        grid.integrate(Scan(0.1 * k, -math.pi, 2 * math.pi / 360, ranges, 0.15, 6.0), Pose2())
     ys, xs = grid.cell_to_world(*np.indices(grid.shape))[::-1]
-    west = (xs < 0) & (np.hypot(xs, ys) < OPEN_REACH - 0.1)
+    distance = np.hypot(xs, ys)
+    said = (xs < -OPEN_REACH - 0.1) & (np.abs(ys) < 0.5) & (distance < 5.0)  # a patch 2.1-5 m west
+    grid.logodds[said] = L_OCC + 2 * L_FREE
+    for k in range(4):  # the robot turning a quarter degree a scan: far out, rays 10 cm apart fill the gaps
+        grid.integrate(Scan(0.1 * k, -math.pi, 2 * math.pi / 360, ranges, 0.15, 6.0), Pose2(0.0, 0.0, math.radians(0.25 * k)))
+    west = (xs < 0) & (distance < OPEN_REACH - 0.1)
     assert (grid.data[west] == FREE).mean() > 0.95  # the hall round the robot
-    beyond = (xs < 0) & (np.hypot(xs, ys) > OPEN_REACH + 0.1)
-    assert (grid.data[beyond] == UNKNOWN).all()  # no farther than its reach
+    far = (xs < 0) & (distance > OPEN_REACH + 0.1) & (distance < 6.0 - 0.1) & ~said
+    assert (grid.data[far] == FREE).mean() > 0.95  # past it, to the lidar's reach, what no ray had touched
+    assert np.all(grid.logodds[said] == np.float32(L_OCC + 2 * L_FREE))  # ... but not what the map had a word on
+    assert (grid.data[(xs < 0) & (distance > 6.0 + 0.1)] == UNKNOWN).all()  # no farther than the lidar's reach
     assert OCCUPIED in (grid.value_at(1.18, 0.3), grid.value_at(1.22, 0.3))  # the face, on a cell boundary
     lost = ranges.copy()
     lost[east & (np.arange(360) % 10 < 5)] = np.inf  # five rays in ten on the wall lost, for 30 scans

@@ -7,7 +7,12 @@ import math
 import numpy as np
 import pytest
 from homing.mapping.grid import OccupancyGrid
-from homing.mapping.grid_slam import GridSlam
+from homing.mapping.grid_slam import (
+    TRACKING_PRIOR_POINTS,
+    TRACKING_PRIOR_THETA,
+    TRACKING_PRIOR_XY,
+    GridSlam,
+)
 from homing.mapping.scan_match import CorrelativeMatcher, GridField, likelihood_field
 from homing.robot import Pose2
 from homing.robot.frames import wrap_angle
@@ -346,3 +351,25 @@ def test_a_matchs_score_is_the_fields_mean_under_the_scan_at_the_refined_pose() 
         assert prepared is not None
         # The score the refinement chose its pose by is the one a fresh look at that pose gives.
         assert result.score == _score(prepared[1], prepared[0], result.pose)
+
+
+def test_a_sparse_scan_far_from_the_walls_keeps_the_gyros_heading() -> None:
+    # An open hall's scan: 40 returns, all 2.5 m and more away, 8 cm of range noise, and a gyro that is right. The
+    # fit of so few points is noisy enough that weighing the heading's prior per point (prior_points=0) lets some
+    # scans step a search step (0.5°) or so off the gyro; weighed as a room's 180 points, none moves.
+    world = truth("loop")
+    grid, _, pose = _loop_corner()
+    worst = {}
+    for prior_points in (0, TRACKING_PRIOR_POINTS):
+        errors = []
+        for k in range(40):
+            r = np.random.default_rng(100 + k)
+            pts = cast_scan(world, pose, 0.0, r, noise=0.08).points()
+            pts = pts[np.hypot(pts[:, 0], pts[:, 1]) > 2.5]
+            pts = pts[r.choice(len(pts), 40, replace=False)]
+            matcher = CorrelativeMatcher(prior_xy=TRACKING_PRIOR_XY, prior_theta=TRACKING_PRIOR_THETA, refine=True,
+                                         prior_points=prior_points)
+            errors.append(abs(wrap_angle(matcher.match(grid, pts, pose).pose.theta - pose.theta)))
+        worst[prior_points] = math.degrees(max(errors))
+    assert worst[0] > 0.25, worst  # the case is a hard one: per point, the noise wins now and then
+    assert worst[TRACKING_PRIOR_POINTS] < 0.05, worst
