@@ -33,7 +33,7 @@ L_FREE = -0.25  # log-odds added to a cell a ray passes through (p ≈ 0.44)
 # the rays to those returns cross its cells between them (a 5 cm cell is 70 cm of ray at 4°, and tracking draws the
 # wall a centimetre or two off from scan to scan): a return must outweigh a few such crossings. At -0.40 (hit to
 # miss 2.1 : 1; GMapping's count threshold is about 3 : 1, Cartographer's 0.55 / 0.49 odds about 5 : 1) a hall's
-# wall seen that way was worn to free in 15 s (atrium:3, nearest, seed 1): the scans then misfit at the right pose,
+# wall seen that way was worn to free in seconds (atrium:3, nearest, seed 1): the scans then misfit at the right pose,
 # the robot was counted lost, the whole map's look put it 9 m away and turned, and exploration said done at 15 %.
 L_MIN = -4.0  # clamp, so a cell can still change its mind (p ≈ 0.018)
 L_MAX = 4.0  # clamp (p ≈ 0.982)

@@ -278,7 +278,7 @@ def test_a_wall_seen_only_along_it_is_not_worn_away_by_the_rays_that_graze_it():
     # ahead the lidar meets the wall at a few degrees: its returns lie a metre apart along the wall, and the rays
     # to them run along the wall's cells on the way, 70 cm of ray in a 5 cm cell at 4°. Between two returns the
     # wall is only ever crossed. In atrium:3 (nearest, seed 1) such rays wore a wall seen only that way down to
-    # free in 15 s; the scans then misfit at the right pose, the robot was counted lost, and the whole map's look
+    # free in seconds; the scans then misfit at the right pose, the robot was counted lost, and the whole map's look
     # put it 9 m away. A return must outweigh the grazing rays between returns (L_OCC against L_FREE).
     res, origin = 0.05, (-4.0, -4.0)
     cells = np.zeros((160, 400), dtype=np.int8)  # 8 × 20 m, free
