@@ -216,7 +216,8 @@ def test_polish_moves_a_pose_a_few_centimetres_off_towards_the_walls_where_the_t
         plan: str, pose: Pose2) -> None:
     # What GridSlam's polish is for: match()'s Gauss-Newton is pulled to the correlative optimum by GN_ANCHOR_XY
     # per end point, which holds a pose 3.5 cm off (under the search's 5 cm step) where it is: it closes about
-    # 1 % of the offset, the polish's looser pull (POLISH_XY) 40-55 % per scan.
+    # 1 % of the offset, the polish's looser pull (POLISH_XY) 27-50 % per scan (33-56 % when a crossing ray took
+    # 0.40 from a cell, not 0.25: four scans then drew the walls a little thinner).
     from homing.mapping.grid_slam import POLISH_XY
     from homing.mapping.scan_match import GN_ANCHOR_XY
 
@@ -231,7 +232,7 @@ def test_polish_moves_a_pose_a_few_centimetres_off_towards_the_walls_where_the_t
         off = Pose2(pose.x + dx, pose.y + dy, pose.theta)
         loose = matcher.polish(grid, pts, off, 8.0, POLISH_XY)
         tight = matcher.polish(grid, pts, off, 8.0, GN_ANCHOR_XY)
-        assert loose.distance_to(pose) < 0.7 * off.distance_to(pose), loose
+        assert loose.distance_to(pose) < 0.8 * off.distance_to(pose), loose
         assert tight.distance_to(pose) > 0.95 * off.distance_to(pose), tight
         assert abs(loose.theta - pose.theta) < math.radians(0.3)
 
