@@ -508,16 +508,14 @@ class LifelongSlam(GridSlam):
         if not self.nodes or not self._moved:
             return
         drawn = self._drawn
-        moved = float((np.hypot(self._xy[:, 0] - drawn[:, 0], self._xy[:, 1] - drawn[:, 1]) +
-                       REBUILD_REACH * np.abs(np.angle(np.exp(1j * (self._theta - drawn[:, 2]))))).max())
+        shift = (np.hypot(self._xy[:, 0] - drawn[:, 0], self._xy[:, 1] - drawn[:, 1]) +
+                 REBUILD_REACH * np.abs(np.angle(np.exp(1j * (self._theta - drawn[:, 2])))))  # each keyframe's
+        moved = float(shift.max())
         if moved <= self.cfg.rebuild_shift:
             self._moved = False
             return
         wait = REBUILD_EVERY if moved > REBUILD_URGENT else max(REBUILD_EVERY, len(self.nodes) / REBUILD_BUDGET)
-        a = self._anchor
-        here = float(np.hypot(self._xy[a, 0] - drawn[a, 0], self._xy[a, 1] - drawn[a, 1]) +
-                     REBUILD_REACH * abs(wrap_angle(self._theta[a] - drawn[a, 2])))
-        if self.stats.steps - self._rebuilt_at < wait and here <= REBUILD_URGENT:
+        if self.stats.steps - self._rebuilt_at < wait and shift[self._anchor] <= REBUILD_URGENT:
             return  # later: keep _moved
         self.redraw()
 
