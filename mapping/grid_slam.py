@@ -183,6 +183,8 @@ class GridSlam:
         self.scan_pose: Pose2 = Pose2()  # base_link in map where the last scan was fused
         self.scans_fused = 0
         self.matches_rejected = 0
+        # The last fused scan's pose is a match's that fits the map (False: refused, the prediction's; or a misfit)
+        self.matched = True
         self.last_score = float("nan")
         self._last_scan_stamp = -math.inf
         self._odom = PoseHistory(HISTORY)
@@ -236,7 +238,8 @@ class GridSlam:
             result = self.matcher.match(self.reference, points, predicted, max_range)
             result, scale = self._slip_match(result, points, odom_pose, max_range)
             self.last_score = result.score
-            if self.relocalise and result.known_points >= MISFIT_POINTS and result.known_score < MISFIT_SCORE:
+            misfit = result.known_points >= MISFIT_POINTS and result.known_score < MISFIT_SCORE
+            if self.relocalise and misfit:
                 # The scan lands on mapped ground but fits nowhere near the prediction: the robot is not where
                 # it thinks. Fusing it would draw the room at the wrong place; after LOST_AFTER such scans, look
                 # for the robot in the whole map instead. Nor does it say anything of slip: the rung stays.
@@ -268,6 +271,7 @@ class GridSlam:
                         corrected = polished
             else:
                 self.matches_rejected += 1
+            self.matched = result.ok and plausible and not misfit
         self.map_to_odom = corrected.compose(odom_pose.inverse())
         self.scan_pose = corrected
         self.grid.integrate(scan, corrected)
