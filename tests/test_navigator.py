@@ -189,3 +189,26 @@ def test_the_path_check_with_its_kept_cells_finds_what_the_costmap_holds_under_t
             assert got == fresh(nav, path, pose)
             seen.add(got)
     assert seen == {True, False}  # both answers came up
+
+
+def test_a_scan_taken_between_ticks_while_turning_fast_marks_the_walls_where_they_are() -> None:
+    """The lidar's stamp falls between two ticks' odometry. Turning on the spot at 1.8 rad/s, half a tick is 5°:
+    a scan placed with the tick before it marked walls up to 19 cm into the room, and a door's way ahead came
+    and went scan by scan (office:1: 77 s turning back and forth). Interpolated, every mark lies on a wall."""
+    room = np.array([(0.0, 0.0, 6.0, 0.1), (0.0, 5.9, 6.0, 6.0), (0.0, 0.0, 0.1, 6.0), (5.9, 0.0, 6.0, 6.0),
+                     (2.5, 4.0, 3.5, 4.1)])  # a room with a shelf in it
+    grid = MapData(rasterise(room, (6.0, 6.0), RES), RES, (0.0, 0.0, 0.0))
+    nav = Navigator()
+    omega = 1.8  # [rad/s] the controller's fastest turn on the spot
+    pose_at = lambda t: Pose2(3.0, 2.0, omega * t)  # noqa: E731
+    for k in range(40):  # four seconds, a scan half-way between every two ticks
+        t = k * DT
+        scan_t = t - DT / 2
+        obs = Observation(stamp=t, odom=Odometry(t, pose_at(t), Twist2(0.0, omega)),
+                          scan=scan_of(pose_at(scan_t), room, stamp=scan_t) if k else None, image=None,
+                          bumpers=Bumpers(), dock_ir=DockIR(), battery=BatteryState(16.0, 90.0))
+        nav.update_costmap(obs, grid, pose_at(t), Pose2())
+    marks = nav.costmap.cell_to_world(np.argwhere(nav.costmap.obstacles))
+    assert len(marks) > 50
+    off = point_rect_distance(marks, room).min(axis=1)
+    assert off.max() <= RES  # [m] within a cell of a wall (the tick before: 0.19 m)
